@@ -1,0 +1,196 @@
+"""The ``rcm-kin`` command line. Units: SI (rad, m) unless ``--deg``; ``--json`` for scripts.
+
+User errors print one line ``error: ...`` on stderr and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import numpy as np
+import pinocchio as pin
+
+from rcm_kin.errors import RcmKinError
+from rcm_kin.robot import GRAVITY, load_robot, robot_names
+
+EPILOG_INFO = "example: rcm-kin info psm --json"
+EPILOG_FK = "example: rcm-kin fk psm 10 -5 0.08 --deg --json   (roll 10 deg, pitch -5 deg, insertion 0.08 m)"
+EPILOG_IK = ("examples: rcm-kin ik psm 0.01 0.02 -0.06 --json   (shaft tip at x y z in m, base frame)\n"
+             "          rcm-kin ik psm 0.01 0.02 -0.07 --rpy 180 0 0 --deg   (tool_tip pose, numeric)\n"
+             "          rcm-kin ik mtm 0.26 0.02 -0.2 --json   (MTM wrist centre)")
+EPILOG_REPORT = "example: rcm-kin report --out report && open report/index.html"
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the project's one-line error format."""
+
+    def error(self, message: str):  # noqa: D102 - argparse API
+        self.exit(2, f"error: {message} (see: {self.prog} --help)\n")
+
+
+def _floats(values: list[str], what: str) -> np.ndarray:
+    try:
+        return np.array([float(v) for v in values])
+    except ValueError:
+        raise RcmKinError(f"{what} must be numbers, got {' '.join(values)}") from None
+
+
+def _degrees_to_si(robot, q: np.ndarray) -> np.ndarray:
+    """Revolute joints deg -> rad; prismatic joints stay in m."""
+    q = q.copy()
+    for i, name in enumerate(robot.actuated[:q.size]):
+        if robot.joint_kind(name) == "revolute":
+            q[i] = np.radians(q[i])
+    return q
+
+
+def _emit(args, payload: dict, text: str) -> None:
+    print(json.dumps(payload) if args.json else text)
+
+
+def cmd_info(args) -> None:
+    from rcm_kin.kinematics.fk import joint_axes_world
+
+    robot = load_robot(args.robot)
+    axes = joint_axes_world(robot, np.zeros(robot.nq))
+    model = robot.tree
+    joints = []
+    for jid in range(1, model.njoints):
+        name = model.names[jid]
+        i = model.joints[jid].idx_q
+        joints.append({"name": name, "type": robot.joint_kind(name),
+                       "lower": float(model.lowerPositionLimit[i]), "upper": float(model.upperPositionLimit[i]),
+                       "axis_world": axes[name].round(12).tolist(),
+                       "role": "actuated" if name in robot.actuated else "passive"})
+    payload = {"robot": robot.name, "joints": joints, "actuated": list(robot.actuated),
+               "gravity": GRAVITY.tolist(), "frames": list(robot.description.frames),
+               "loops": [c.loop.name for c in robot.constraints]}
+    lines = [f"{robot.name}: {len(robot.actuated)} actuated joints, {len(robot.constraints)} loop closures, "
+             f"gravity {GRAVITY.tolist()} m/s^2 (base frame)",
+             f"{'joint':18} {'type':9} {'role':8} {'lower':>9} {'upper':>9}  axis (base frame, q = 0)"]
+    for j in joints:
+        scale, unit = (1e3, "mm") if j["type"] == "prismatic" else (180 / np.pi, "deg")
+        lines.append(f"{j['name']:18} {j['type']:9} {j['role']:8} {j['lower'] * scale:9.2f} {j['upper'] * scale:9.2f}"
+                     f" {unit:3} {np.round(j['axis_world'], 4).tolist()}")
+    lines.append(f"frames of interest: {', '.join(robot.description.frames)}")
+    _emit(args, payload, "\n".join(lines))
+
+
+def cmd_fk(args) -> None:
+    from rcm_kin.kinematics.fk import forward_kinematics
+
+    robot = load_robot(args.robot)
+    q = _floats(args.q, "joint values")
+    if args.deg:
+        q = _degrees_to_si(robot, q)
+    result = forward_kinematics(robot, robot.check_q(q, allow_short=True))
+    frames = {name: {"position": M.translation.tolist(), "rotation": M.rotation.tolist()}
+              for name, M in result.frames.items()}
+    payload = {"q": result.q.tolist(), "frames": frames, "closure_residual": result.closure_residual}
+    lines = [f"q = {np.round(result.q, 6).tolist()} (rad, m)"]
+    lines += [f"{name:14} position {np.round(M.translation, 6).tolist()} m" for name, M in result.frames.items()]
+    lines.append(f"loop closure residual {result.closure_residual:.1e} m")
+    _emit(args, payload, "\n".join(lines))
+
+
+def cmd_ik(args) -> None:
+    from rcm_kin.kinematics.fk import frame_placement
+
+    robot = load_robot(args.robot)
+    target = _floats([args.x, args.y, args.z], "the target x y z")
+    if robot.name == "psm" and args.rpy is None:
+        from rcm_kin.kinematics.psm_ik import ARM, shaft_tip_ik
+        frame, joints = "shaft_tip", ARM
+        q_short = shaft_tip_ik(robot, target)
+        q_full = robot.check_q(q_short, allow_short=True)
+        rotation_error = None
+    elif robot.name == "psm":
+        from rcm_kin.kinematics.psm_ik import ARM, WRIST, tool_pose_ik
+        rpy = _floats(args.rpy, "--rpy")
+        rotation = pin.rpy.rpyToMatrix(*(np.radians(rpy) if args.deg else rpy))
+        frame, joints = "tool_tip", ARM + WRIST
+        result = tool_pose_ik(robot, target, rotation)
+        q_full, rotation_error = result.q, result.orientation_error
+        q_short = q_full[:len(joints)]
+    elif robot.name == "mtm":
+        if args.rpy is not None:
+            raise RcmKinError("--rpy is for the PSM tool; the MTM IK places its wrist centre")
+        from rcm_kin.kinematics.numeric_ik import solve_ik
+        frame, joints = "wrist_center", ("j1", "j2", "j3")
+        q_full = solve_ik(robot, frame, target, joints=joints).q
+        q_short, rotation_error = q_full[:3], None
+    else:
+        raise RcmKinError(f"no IK for robot '{robot.name}'")
+    error = float(np.linalg.norm(frame_placement(robot, q_full, frame).translation - target))
+    payload = {"q": q_short.tolist(), "position_error": error, "frame": frame, "joints": list(joints)}
+    if rotation_error is not None:
+        payload["orientation_error"] = rotation_error
+    shown = [f"{n} {np.degrees(v):.4f} deg" if robot.joint_kind(n) == "revolute" else f"{n} {v * 1e3:.4f} mm"
+             for n, v in zip(joints, q_short)]
+    _emit(args, payload, f"{frame}: " + ", ".join(shown) + f"  (position error {error:.1e} m)")
+
+
+def cmd_report(args) -> None:
+    from rcm_kin.report import write_report
+
+    index = write_report(args.out)
+    print(f"report written: {index}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="rcm-kin", description=(
+        "Models of the low-cost RCM surgical robot (PSM and MTM): kinematics, dynamics, control. "
+        "Units: rad, m, N m, V unless --deg; PWM in counts with the hardware sign."),
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    robots = ", ".join(robot_names())
+
+    p = sub.add_parser("info", help="joints, limits, axes and frames of a robot", epilog=EPILOG_INFO)
+    p.add_argument("robot", help=f"robot name ({robots})")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=cmd_info)
+
+    p = sub.add_parser("fk", help="forward kinematics of the frames of interest", epilog=EPILOG_FK,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("robot", help=f"robot name ({robots})")
+    p.add_argument("q", nargs="*", metavar="Q",
+                   help="actuated joint values in 'info' order (rad, m); missing trailing values are 0")
+    p.add_argument("--deg", action="store_true", help="revolute values in degrees (prismatic stay in m)")
+    p.add_argument("--json", action="store_true", help="machine-readable output (SI)")
+    p.set_defaults(func=cmd_fk)
+
+    p = sub.add_parser("ik", help="inverse kinematics: PSM shaft tip or tool pose, MTM wrist centre",
+                       epilog=EPILOG_IK, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("robot", help="psm or mtm")
+    for axis in "xyz":
+        p.add_argument(axis, metavar=axis.upper(), help=f"target {axis} in m, base frame")
+    p.add_argument("--rpy", nargs=3, metavar=("R", "P", "Y"),
+                   help="PSM only: also the tool_tip orientation as roll pitch yaw (rad, or deg with --deg)")
+    p.add_argument("--deg", action="store_true", help="--rpy in degrees")
+    p.add_argument("--json", action="store_true", help="machine-readable output (SI)")
+    p.set_defaults(func=cmd_ik)
+
+    p = sub.add_parser("report", help="run the main job on the bundled models and write index.html",
+                       epilog=EPILOG_REPORT)
+    p.add_argument("--out", required=True, help="output folder (created)")
+    p.set_defaults(func=cmd_report)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        args.func(args)
+    except RcmKinError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

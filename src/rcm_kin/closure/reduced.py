@@ -1,0 +1,63 @@
+"""The reduced model: the closed chain in actuated coordinates.
+
+Each passive joint of a loop follows an actuated joint linearly (``[[passive]]`` in the
+sidecar); for a parallelogram this is exact. The relations become Pinocchio mimic joints, so
+kinematics, RNEA, CRBA and gravity of the reduced model are Pinocchio's own. (Pinocchio's
+ABA and analytic derivatives do not support mimic joints.)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from rcm_kin.closure.description import PassiveRelation
+
+
+def build_reduced_model(tree: pin.Model, passive: tuple[PassiveRelation, ...]) -> pin.Model:
+    """The open tree with every passive joint turned into a mimic of the joint it follows."""
+    model = tree
+    for relation in passive:
+        model = pin.transformJointIntoMimic(
+            model, model.getJointId(relation.follows), model.getJointId(relation.joint),
+            relation.multiplier, relation.offset)
+    model.gravity = tree.gravity
+    return model
+
+
+def tree_configuration(robot, q: np.ndarray) -> np.ndarray:
+    """Open-tree configuration of actuated ``q``, passive joints from the linear relations."""
+    q_tree = np.zeros(robot.tree.nq)
+    q_tree[robot.tree_q_actuated] = q
+    actuated = robot.description.actuated
+    for k, relation in enumerate(robot.description.passive):
+        q_tree[robot.tree_q_passive[k]] = relation.multiplier * q[actuated.index(relation.follows)] + relation.offset
+    return q_tree
+
+
+def relation_jacobian(robot) -> np.ndarray:
+    """``S = d q_tree / d q`` of the linear relations: (tree nv) x (actuated), constant."""
+    S = np.zeros((robot.tree.nv, robot.nq))
+    S[robot.tree_q_actuated, np.arange(robot.nq)] = 1.0
+    actuated = robot.description.actuated
+    for k, relation in enumerate(robot.description.passive):
+        S[robot.tree_q_passive[k], actuated.index(relation.follows)] = relation.multiplier
+    return S
+
+
+def reduced_mass_matrix(robot, q: np.ndarray) -> np.ndarray:
+    """Joint-space inertia of the reduced model in actuated order (kg m^2, kg).
+
+    Uses ``Convention.WORLD``: with mimic joints, Pinocchio 4.1's default (LOCAL) CRBA
+    accumulates error across calls on the same Data (tests/test_closure.py guards this).
+    """
+    M = pin.crba(robot.reduced, robot.reduced_data, robot.to_reduced(q), pin.Convention.WORLD)
+    M = np.triu(M) + np.triu(M, 1).T
+    i = robot.reduced_q_actuated
+    return M[np.ix_(i, i)]
+
+
+def reduced_gravity(robot, q: np.ndarray) -> np.ndarray:
+    """Generalised gravity of the reduced model in actuated order (N m, N)."""
+    g = pin.computeGeneralizedGravity(robot.reduced, robot.reduced_data, robot.to_reduced(q))
+    return robot.from_reduced(g).copy()

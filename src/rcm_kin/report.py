@@ -1,0 +1,118 @@
+"""``rcm-kin report``: the main job on the bundled models, written as a browsable index.html.
+
+Sections so far: model summary and kinematic self-checks (loop closure, constrained vs
+reduced model, RCM fixity, IK round trips). Later stages of the pipeline add their sections.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import yourdfpy
+
+from rcm_kin.closure import constrained, reduced
+from rcm_kin.errors import RcmKinError
+from rcm_kin.kinematics.fk import frame_placement
+from rcm_kin.kinematics.numeric_ik import solve_ik
+from rcm_kin.kinematics.psm_ik import rcm_geometry, shaft_tip_ik
+from rcm_kin.robot import load_robot
+
+
+@dataclass(frozen=True)
+class KinematicChecks:
+    """Largest discrepancies over random configurations (SI units)."""
+
+    samples: int
+    loop_solve_vs_relations: float     # rad, passive joints: Newton solve vs linear relations
+    closure_residual: float            # m
+    gravity_constrained_vs_reduced: float   # N m
+    mass_matrix_constrained_vs_reduced: float
+    rcm_distance_to_shaft: float       # m
+    psm_ik_round_trip: float           # m, shaft tip
+    mtm_ik_round_trip: float           # m, wrist centre
+
+
+def kinematic_checks(samples: int = 200, seed: int = 0) -> KinematicChecks:
+    psm, mtm = load_robot("psm"), load_robot("mtm")
+    rng = np.random.default_rng(seed)
+    geom = rcm_geometry(psm)
+    worst = dict(loop=0.0, res=0.0, grav=0.0, mass=0.0, rcm=0.0, psm_ik=0.0, mtm_ik=0.0)
+    for _ in range(samples):
+        q = rng.uniform(psm.lower, psm.upper)
+        q_tree = constrained.solve_loops(psm, q)
+        worst["loop"] = max(worst["loop"], np.max(np.abs(q_tree - reduced.tree_configuration(psm, q))))
+        worst["res"] = max(worst["res"], np.max(np.abs(constrained.closure_residual(psm, q_tree))))
+        g_tree = pin.computeGeneralizedGravity(psm.tree, psm.tree_data, q_tree)
+        tau = constrained.project_torques(psm, q_tree, g_tree).tau
+        worst["grav"] = max(worst["grav"], np.max(np.abs(tau - reduced.reduced_gravity(psm, q))))
+        worst["mass"] = max(worst["mass"], np.max(np.abs(constrained.mass_matrix(psm, q_tree)
+                                                         - reduced.reduced_mass_matrix(psm, q))))
+        tip = frame_placement(psm, q, "shaft_tip")
+        worst["rcm"] = max(worst["rcm"], np.linalg.norm(np.cross(geom.rcm - tip.translation, tip.rotation[:, 2])))
+        q_ik = psm.check_q(shaft_tip_ik(psm, tip.translation), allow_short=True)
+        worst["psm_ik"] = max(worst["psm_ik"], np.linalg.norm(
+            frame_placement(psm, q_ik, "shaft_tip").translation - tip.translation))
+    for _ in range(max(1, samples // 10)):
+        qm = rng.uniform(mtm.lower, mtm.upper) * 0.6
+        target = frame_placement(mtm, qm, "wrist_center").translation
+        worst["mtm_ik"] = max(worst["mtm_ik"], solve_ik(mtm, "wrist_center", target, joints=("j1", "j2", "j3"))
+                              .position_error)
+    return KinematicChecks(samples, *(float(worst[k]) for k in ("loop", "res", "grav", "mass", "rcm", "psm_ik", "mtm_ik")))
+
+
+def model_summary(name: str) -> dict:
+    """Joints with limits and the mass of every link of a bundled robot (kg)."""
+    robot = load_robot(name)
+    urdf = yourdfpy.URDF.load(str(robot.description.urdf), build_scene_graph=False, load_meshes=False)
+    masses = {link.name: link.inertial.mass for link in urdf.robot.links if link.inertial is not None}
+    joints = []
+    for jid in range(1, robot.tree.njoints):
+        jname = robot.tree.names[jid]
+        i = robot.tree.joints[jid].idx_q
+        joints.append(dict(name=jname, kind=robot.joint_kind(jname),
+                           role="actuated" if jname in robot.actuated else "passive",
+                           lower=float(robot.tree.lowerPositionLimit[i]), upper=float(robot.tree.upperPositionLimit[i])))
+    return dict(robot=name, joints=joints, link_masses=masses, total_mass=float(sum(masses.values())),
+                loops=[c.loop.name for c in robot.constraints])
+
+
+def _table(rows: list[list], header: list[str]) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
+    return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def write_report(out: str | Path) -> Path:
+    """Run the pipeline on the bundled models; returns the path of index.html."""
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RcmKinError(f"cannot create the report folder {out}: {exc.strerror}") from None
+    summaries = [model_summary(n) for n in ("psm", "mtm")]
+    checks = kinematic_checks()
+    (out / "model_summary.json").write_text(json.dumps(summaries, indent=1))
+    (out / "kinematic_checks.json").write_text(json.dumps(asdict(checks), indent=1))
+
+    parts = ["<h1>rcm-kin report</h1>", "<p>All quantities SI (rad, m, kg, N m).</p>"]
+    for s in summaries:
+        parts.append(f"<h2>Model: {s['robot']}</h2><p>Loop closures: {', '.join(s['loops']) or 'none'}; "
+                     f"total link mass {s['total_mass']:.3f} kg.</p>")
+        parts.append(_table([[j["name"], j["kind"], j["role"], f"{j['lower']:.4f}", f"{j['upper']:.4f}"]
+                             for j in s["joints"]], ["joint", "type", "role", "lower", "upper"]))
+        parts.append(_table([[k, f"{v:.4f}"] for k, v in s["link_masses"].items()], ["link", "mass (kg)"]))
+    parts.append(f"<h2>Kinematic self-checks ({checks.samples} random PSM configurations)</h2>")
+    parts.append(_table([[k, f"{v:.2e}"] for k, v in asdict(checks).items() if k != "samples"],
+                        ["largest discrepancy", "value (SI)"]))
+    parts.append('<p>Data: <a href="model_summary.json">model_summary.json</a>, '
+                 '<a href="kinematic_checks.json">kinematic_checks.json</a></p>')
+    style = "<style>body{font-family:sans-serif;max-width:60em;margin:2em auto}td,th{padding:2px 8px}</style>"
+    index = out / "index.html"
+    index.write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>rcm-kin report</title>{style}"
+                     f"</head><body>{''.join(parts)}</body></html>\n")
+    return index

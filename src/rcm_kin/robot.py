@@ -1,0 +1,160 @@
+"""Load a bundled robot (URDF + sidecar) into its open-tree and reduced Pinocchio models.
+
+Coordinates: ``q`` of every public function is the vector of *actuated* joints in the sidecar's
+``actuated`` order (rad for revolute, m for prismatic). ``q_tree`` is the open tree's full
+configuration, passive joints of the loops included.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from rcm_kin.closure.constrained import build_constraint_models, closure_residual
+from rcm_kin.closure.description import RobotDescription, read_description
+from rcm_kin.closure.reduced import build_reduced_model, tree_configuration
+from rcm_kin.errors import RcmKinError
+
+GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, base frame (z up) of every bundled robot
+
+
+def urdf_dir() -> Path:
+    """The folder of bundled URDFs: inside the installed package, else the source checkout's ``urdf/``."""
+    here = Path(__file__).resolve().parent
+    for candidate in (here / "urdf", here.parents[1] / "urdf"):
+        if (candidate / "psm.toml").is_file():
+            return candidate
+    raise RcmKinError("the bundled robot models are missing: reinstall rcm-kin (pip install .)")
+
+
+def robot_names() -> list[str]:
+    return sorted(p.stem for p in urdf_dir().glob("*.toml"))
+
+
+@dataclass(eq=False)
+class Robot:
+    """A robot's models and index maps. ``*_data`` are Pinocchio scratch workspaces."""
+
+    name: str
+    description: RobotDescription
+    tree: pin.Model                 # open tree, all joints independent
+    reduced: pin.Model              # actuated coordinates; loop joints are mimic joints
+    constraints: list               # Pinocchio constraint models, one per loop
+    tree_q_actuated: np.ndarray     # index in q_tree of each actuated joint (actuated order)
+    tree_q_passive: np.ndarray      # index in q_tree of each passive joint (description order)
+    reduced_q_actuated: np.ndarray  # index in the reduced q of each actuated joint
+    lower: np.ndarray               # actuated joint limits (rad or m)
+    upper: np.ndarray
+    tree_data: pin.Data = field(repr=False, default=None)
+    reduced_data: pin.Data = field(repr=False, default=None)
+
+    @property
+    def actuated(self) -> tuple[str, ...]:
+        return self.description.actuated
+
+    @property
+    def nq(self) -> int:
+        return len(self.description.actuated)
+
+    def joint_kind(self, name: str) -> str:
+        """'revolute' or 'prismatic'."""
+        shortname = self.tree.joints[self.tree.getJointId(name)].shortname()
+        return "prismatic" if "Prismatic" in shortname else "revolute"
+
+    def frame_id(self, name: str) -> int:
+        if not self.reduced.existFrame(name):
+            raise RcmKinError(f"{self.name} has no frame '{name}'; frames of interest: "
+                              f"{', '.join(self.description.frames)}")
+        return self.reduced.getFrameId(name)
+
+    def to_reduced(self, q: np.ndarray) -> np.ndarray:
+        """Actuated-order vector -> the reduced model's configuration vector."""
+        q_red = np.zeros(self.reduced.nq)
+        q_red[self.reduced_q_actuated] = q
+        return q_red
+
+    def from_reduced(self, q_red: np.ndarray) -> np.ndarray:
+        return np.asarray(q_red)[self.reduced_q_actuated]
+
+    def check_q(self, q, *, allow_short: bool = False) -> np.ndarray:
+        """``q`` as a float array of the actuated size, or a clear error. Short vectors are
+        padded with zeros when ``allow_short``."""
+        q = np.atleast_1d(np.asarray(q, dtype=float))
+        if q.ndim != 1 or q.size > self.nq or (q.size < self.nq and not allow_short):
+            raise RcmKinError(f"{self.name} takes {self.nq} joint values ({', '.join(self.actuated)}), got {q.size}")
+        if not np.all(np.isfinite(q)):
+            raise RcmKinError(f"joint values must be finite numbers, got {q.tolist()}")
+        return np.concatenate([q, np.zeros(self.nq - q.size)])
+
+
+def _joint_q_index(model: pin.Model, name: str, where: str) -> int:
+    if not model.existJointName(name):
+        raise RcmKinError(f"{where}: joint '{name}' is not in the URDF")
+    joint = model.joints[model.getJointId(name)]
+    if joint.nq != 1:
+        raise RcmKinError(f"{where}: joint '{name}' must be a 1-DOF revolute or prismatic joint")
+    return joint.idx_q
+
+
+def build_robot(description: RobotDescription) -> Robot:
+    """Build and check the open-tree, constrained and reduced models of one description."""
+    where = str(description.urdf)
+    tree = pin.buildModelFromUrdf(str(description.urdf))
+    tree.gravity.linear = GRAVITY
+    tree_data = tree.createData()
+    assert tree.check(tree_data), f"{where}: pinocchio model check failed"
+
+    actuated = [_joint_q_index(tree, n, where) for n in description.actuated]
+    passive = [_joint_q_index(tree, p.joint, where) for p in description.passive]
+    for p in description.passive:
+        if p.follows not in description.actuated:
+            raise RcmKinError(f"{where}: passive joint '{p.joint}' follows '{p.follows}', which is not actuated")
+    unassigned = set(tree.names[1:]) - set(description.actuated) - {p.joint for p in description.passive}
+    if unassigned:
+        raise RcmKinError(f"{where}: joints {sorted(unassigned)} are neither actuated nor passive")
+    for frame in description.frames:
+        if not tree.existFrame(frame):
+            raise RcmKinError(f"{where}: frame of interest '{frame}' is not a link of the URDF")
+
+    reduced = build_reduced_model(tree, description.passive)
+    reduced_data = reduced.createData()
+    assert reduced.check(reduced_data), f"{where}: pinocchio check of the reduced model failed"
+    reduced_actuated = [reduced.joints[reduced.getJointId(n)].idx_q for n in description.actuated]
+
+    tree_q = np.array(actuated, dtype=int)
+    robot = Robot(
+        name=description.robot, description=description, tree=tree, reduced=reduced,
+        constraints=build_constraint_models(tree, description.loops),
+        tree_q_actuated=tree_q, tree_q_passive=np.array(passive, dtype=int),
+        reduced_q_actuated=np.array(reduced_actuated, dtype=int),
+        lower=tree.lowerPositionLimit[tree_q].copy(), upper=tree.upperPositionLimit[tree_q].copy(),
+        tree_data=tree_data, reduced_data=reduced_data)
+    _check_passive_relations(robot)
+    return robot
+
+
+def _check_passive_relations(robot: Robot, tol: float = 1e-9) -> None:
+    """The sidecar's linear passive relations must close every loop (checked at the limits)."""
+    if not robot.constraints:
+        return
+    for q in (np.zeros(robot.nq), robot.lower, robot.upper, 0.5 * (robot.lower + robot.upper)):
+        residual = closure_residual(robot, tree_configuration(robot, q))
+        if np.max(np.abs(residual)) > tol:
+            raise RcmKinError(f"{robot.description.urdf}: the [[passive]] relations do not close the loops "
+                              f"(residual {np.max(np.abs(residual)):.2e} m at q = {np.round(q, 4).tolist()})")
+
+
+@functools.lru_cache(maxsize=None)
+def load_robot(name: str) -> Robot:
+    """A bundled robot by name (``psm``, ``mtm``) or any sidecar ``.toml`` by path."""
+    if name.endswith(".toml"):
+        path = Path(name)
+    elif name in robot_names():
+        path = urdf_dir() / f"{name}.toml"
+    else:
+        raise RcmKinError(f"unknown robot '{name}'; choose one of: {', '.join(robot_names())}")
+    return build_robot(read_description(path))

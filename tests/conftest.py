@@ -1,0 +1,32 @@
+"""Shared fixtures. Tests read ``../shared/`` only through ``shared_data``, which skips when absent."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+@pytest.fixture(scope="session")
+def shared_data() -> Path:
+    """The measured PSM logs beside the project (reference material, never committed)."""
+    if not (SHARED_DATA / "psm-sysid").is_dir():
+        pytest.skip(f"measured PSM logs not found at {SHARED_DATA} (reference data lives beside the project)")
+    return SHARED_DATA
+
+
+@pytest.fixture(scope="session")
+def psm():
+    from rcm_kin import load_robot
+    return load_robot("psm")
+
+
+@pytest.fixture(scope="session")
+def mtm():
+    from rcm_kin import load_robot
+    return load_robot("mtm")
