@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -132,6 +133,94 @@ def cmd_ik(args) -> None:
     _emit(args, payload, f"{frame}: " + ", ".join(shown) + f"  (position error {error:.1e} m)")
 
 
+def cmd_gravity(args) -> None:
+    from rcm_kin.dynamics.drive import DRIVEN, drive_effort, load_drive_parameters
+    from rcm_kin.dynamics.gravity import gravity_batch
+
+    robot = load_robot(args.robot, counterweights=not args.no_counterweights)
+    q = _floats(args.q, "joint values")
+    if args.deg:
+        q = _degrees_to_si(robot, q)
+    q = robot.check_q(q, allow_short=True)
+    payload = {"joints": list(robot.actuated), "q": q.tolist()}
+    if robot.name == "psm":
+        drive = load_drive_parameters(args.params)
+        tau = gravity_batch(robot, q[None], drive.gravity_offsets)[0]
+        effort = drive_effort(drive, tau[:3])
+        payload.update(tau=tau.tolist(), pwm=effort.pwm.tolist(), voltage=effort.voltage.tolist(),
+                       driven=list(DRIVEN), saturated=effort.saturated.tolist())
+    else:
+        tau = gravity_batch(robot, q[None])[0]
+        payload.update(tau=tau.tolist(), pwm=[], voltage=[], driven=[])
+    units = ["N" if robot.joint_kind(n) == "prismatic" else "N m" for n in robot.actuated]
+    lines = [f"{n:16} {t:+10.4f} {u}" for n, t, u in zip(robot.actuated, payload["tau"], units)]
+    if payload["pwm"]:
+        lines.append("driven joints (hardware PWM sign: positive decreases the angle):")
+        lines += [f"{n:16} {v:+8.3f} V  {p:+8.2f} PWM" + ("  SATURATED" if s else "")
+                  for n, v, p, s in zip(DRIVEN, payload["voltage"], payload["pwm"], payload["saturated"])]
+    _emit(args, payload, "\n".join(lines))
+
+
+def cmd_torque_map(args) -> None:
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
+    from rcm_kin.gravity_map import gravity_map, parse_range, write_csv
+
+    if args.robot != "psm":
+        raise RcmKinError("torque maps are for the PSM's driven joints: rcm-kin torque-map psm ...")
+    robot = load_robot("psm", counterweights=not args.no_counterweights)
+    drive = load_drive_parameters(args.params)
+    out = _out_dir(args.out)
+    roll, pitch = (np.linspace(*parse_range(t, w)) for t, w in ((args.roll, "--roll"), (args.pitch, "--pitch")))
+    gmap = gravity_map(robot, drive, roll, pitch, [args.insertion], progress=True)
+    files = [write_csv(gmap, out / "torque_map.csv"), effort_heatmaps(gmap, out / "torque_map.png"),
+             thesis_trend_curves(gmap, out / "trend_curves.png")]
+    lo, hi = robot.lower[2], robot.upper[2]
+    sweep = gravity_map(robot, drive, [0.0], [0.0], np.linspace(lo, hi, 81))
+    files += [write_csv(sweep, out / "insertion_map.csv"), insertion_curves(sweep, out / "insertion_map.png")]
+    payload = {"files": [str(f) for f in files], "poses": int(gmap.effort.tau[..., 0].size)}
+    _emit(args, payload, "\n".join(f"wrote {f}" for f in files))
+
+
+def cmd_calibrate(args) -> None:
+    from rcm_kin.calibration import UNITS, calibrate, calibration_logs, holding_points, write_parameters
+    from rcm_kin.dynamics.drive import load_drive_parameters
+
+    robot = load_robot("psm")
+    base = load_drive_parameters(args.params)
+    points = holding_points(calibration_logs(args.data))
+    result = calibrate(robot, base, points)
+    payload = {"parameters": {n: {"value": float(v), "std": float(s), "unit": u}
+                              for n, v, s, u in zip(result.names, result.values, result.std, UNITS)},
+               "residual_rms_pwm": result.residual_rms.tolist(), "friction_band_pwm": result.friction_band.tolist(),
+               "points": [{"source": p.source, "roll_deg": float(np.degrees(p.roll)),
+                           "pitch_deg": float(np.degrees(p.pitch)), "measured_pwm": [p.pwm_roll, p.pwm_pitch],
+                           "predicted_pwm": pred.tolist()} for p, pred in zip(points, result.predicted)]}
+    if args.out:
+        header = (f"Drive parameters calibrated by `rcm-kin calibrate` on {len(points)} holding points.\n"
+                  + "\n".join(f"{n} = {v:.6g} +- {s:.2g} {u}" for n, v, s, u in
+                               zip(result.names, result.values, result.std, UNITS))
+                  + f"\nresidual RMS roll {result.residual_rms[0]:.2f}, pitch {result.residual_rms[1]:.2f} PWM; "
+                  f"largest |residual| roll {result.friction_band[0]:.2f}, pitch {result.friction_band[1]:.2f} PWM."
+                  "\nFormat and assumed constants: see the shipped rcm_kin/parameters/psm_drive.toml.")
+        payload["written"] = str(write_parameters(result.parameters, args.out, header))
+    lines = [f"{n:20} {v:+.6g} +- {s:.2g} {u}" for n, v, s, u in zip(result.names, result.values, result.std, UNITS)]
+    lines.append(f"residual RMS: roll {result.residual_rms[0]:.2f}, pitch {result.residual_rms[1]:.2f} PWM "
+                 f"over {len(points)} holding points")
+    if args.out:
+        lines.append(f"wrote {payload['written']}")
+    _emit(args, payload, "\n".join(lines))
+
+
+def _out_dir(path: str) -> Path:
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RcmKinError(f"cannot create the output folder {out}: {exc.strerror}") from None
+    return out
+
+
 def cmd_report(args) -> None:
     from rcm_kin.report import write_report
 
@@ -171,6 +260,39 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--deg", action="store_true", help="--rpy in degrees")
     p.add_argument("--json", action="store_true", help="machine-readable output (SI)")
     p.set_defaults(func=cmd_ik)
+
+    p = sub.add_parser("gravity", help="holding torque (and PSM motor voltage/PWM) at a pose",
+                       epilog="example: rcm-kin gravity psm 10 -15 0.08 --deg --json   (roll, pitch in deg, insertion m)",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("robot", help=f"robot name ({robots})")
+    p.add_argument("q", nargs="*", metavar="Q", help="actuated joint values in 'info' order (rad, m); missing are 0")
+    p.add_argument("--deg", action="store_true", help="revolute values in degrees")
+    p.add_argument("--no-counterweights", action="store_true", help="remove the counterweights' mass")
+    p.add_argument("--params", help="drive parameter TOML (default: the shipped calibrated set)")
+    p.add_argument("--json", action="store_true",
+                   help='{"joints", "tau" (N m, N), "pwm" (counts), "voltage" (V)} (PWM/V for roll, pitch, insertion)')
+    p.set_defaults(func=cmd_gravity)
+
+    p = sub.add_parser("torque-map", help="holding torque/voltage/PWM over roll x pitch (CSV + PNG)",
+                       epilog="example: rcm-kin torque-map psm --roll=-30:30:61 --pitch=-30:30:61 --insertion 0.08 --out maps\n(write negative ranges with =, as argparse reads a leading - as an option)",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("robot", help="psm")
+    p.add_argument("--roll", default="-30:30:61", help="roll grid LO:HI:N in degrees (default -30:30:61)")
+    p.add_argument("--pitch", default="-30:30:61", help="pitch grid LO:HI:N in degrees (default -30:30:61)")
+    p.add_argument("--insertion", type=float, default=0.08, help="insertion in m (default 0.08)")
+    p.add_argument("--no-counterweights", action="store_true", help="remove the counterweights' mass")
+    p.add_argument("--params", help="drive parameter TOML (default: the shipped calibrated set)")
+    p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument("--json", action="store_true", help='{"files": [...], "poses": N}')
+    p.set_defaults(func=cmd_torque_map)
+
+    p = sub.add_parser("calibrate", help="fit drive gain and gravity offsets to measured holding efforts",
+                       epilog="example: rcm-kin calibrate ../shared/data --out my_drive.toml")
+    p.add_argument("data", help="folder with roll-step/*.csv and pitch-prbs/*.csv telemetry logs")
+    p.add_argument("--params", help="starting drive parameter TOML (default: the shipped set)")
+    p.add_argument("--out", help="write the calibrated parameter TOML here")
+    p.add_argument("--json", action="store_true", help="parameters with uncertainty, residuals per point")
+    p.set_defaults(func=cmd_calibrate)
 
     p = sub.add_parser("report", help="run the main job on the bundled models and write index.html",
                        epilog=EPILOG_REPORT)

@@ -8,6 +8,7 @@ configuration, passive joints of the loops included.
 from __future__ import annotations
 
 import functools
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,6 +42,7 @@ class Robot:
 
     name: str
     description: RobotDescription
+    with_counterweights: bool
     tree: pin.Model                 # open tree, all joints independent
     reduced: pin.Model              # actuated coordinates; loop joints are mimic joints
     constraints: list               # Pinocchio constraint models, one per loop
@@ -100,10 +102,29 @@ def _joint_q_index(model: pin.Model, name: str, where: str) -> int:
     return joint.idx_q
 
 
-def build_robot(description: RobotDescription) -> Robot:
-    """Build and check the open-tree, constrained and reduced models of one description."""
+def _urdf_without(description: RobotDescription, links: tuple[str, ...]) -> str:
+    """The URDF text with the mass of ``links`` removed (their geometry stays)."""
+    root = ET.parse(description.urdf).getroot()
+    found = set()
+    for link in root.iter("link"):
+        if link.get("name") in links:
+            found.add(link.get("name"))
+            for inertial in link.findall("inertial"):
+                link.remove(inertial)
+    if missing := set(links) - found:
+        raise RcmKinError(f"{description.urdf}: counterweight links {sorted(missing)} are not in the URDF")
+    return ET.tostring(root, encoding="unicode")
+
+
+def build_robot(description: RobotDescription, counterweights: bool = True) -> Robot:
+    """Build and check the open-tree, constrained and reduced models of one description.
+
+    ``counterweights=False`` drops the mass of the sidecar's counterweight links."""
     where = str(description.urdf)
-    tree = pin.buildModelFromUrdf(str(description.urdf))
+    if counterweights:
+        tree = pin.buildModelFromUrdf(str(description.urdf))
+    else:
+        tree = pin.buildModelFromXML(_urdf_without(description, description.counterweights))
     tree.gravity.linear = GRAVITY
     tree_data = tree.createData()
     assert tree.check(tree_data), f"{where}: pinocchio model check failed"
@@ -127,7 +148,8 @@ def build_robot(description: RobotDescription) -> Robot:
 
     tree_q = np.array(actuated, dtype=int)
     robot = Robot(
-        name=description.robot, description=description, tree=tree, reduced=reduced,
+        name=description.robot, description=description, with_counterweights=counterweights,
+        tree=tree, reduced=reduced,
         constraints=build_constraint_models(tree, description.loops),
         tree_q_actuated=tree_q, tree_q_passive=np.array(passive, dtype=int),
         reduced_q_actuated=np.array(reduced_actuated, dtype=int),
@@ -149,12 +171,13 @@ def _check_passive_relations(robot: Robot, tol: float = 1e-9) -> None:
 
 
 @functools.lru_cache(maxsize=None)
-def load_robot(name: str) -> Robot:
-    """A bundled robot by name (``psm``, ``mtm``) or any sidecar ``.toml`` by path."""
+def load_robot(name: str, counterweights: bool = True) -> Robot:
+    """A bundled robot by name (``psm``, ``mtm``) or any sidecar ``.toml`` by path; with
+    ``counterweights=False`` the counterweight links carry no mass."""
     if name.endswith(".toml"):
         path = Path(name)
     elif name in robot_names():
         path = urdf_dir() / f"{name}.toml"
     else:
         raise RcmKinError(f"unknown robot '{name}'; choose one of: {', '.join(robot_names())}")
-    return build_robot(read_description(path))
+    return build_robot(read_description(path), counterweights)

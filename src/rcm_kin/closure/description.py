@@ -49,6 +49,7 @@ class RobotDescription:
     frames: tuple[str, ...]
     loops: tuple[LoopClosure, ...]
     passive: tuple[PassiveRelation, ...]
+    counterweights: tuple[str, ...] = ()   # links whose mass is a counterweight (removable)
 
 
 def _vector3(entry: dict, key: str, where: str) -> np.ndarray:
@@ -113,4 +114,5 @@ def read_description(path: str | Path) -> RobotDescription:
         raise RcmKinError(f"{where}: loops need [[passive]] relations for the reduced model")
     return RobotDescription(
         robot=_text(raw, "robot", where), urdf=urdf, actuated=tuple(actuated),
-        frames=tuple(raw.get("frames", ())), loops=tuple(loops), passive=tuple(passive))
+        frames=tuple(raw.get("frames", ())), loops=tuple(loops), passive=tuple(passive),
+        counterweights=tuple(raw.get("counterweights", ())))

@@ -1,0 +1,135 @@
+"""The drive: joint torque -> motor torque -> current -> voltage -> PWM counts, and back.
+
+Per driven joint (PSM roll, pitch, insertion): a brushed DC motor behind a transmission of
+ratio ``gear_ratio`` (motor rad per joint rad, or per metre for the insertion), driven by an
+8-bit sign-magnitude PWM driver. With the joint at velocity ``v``:
+
+    tau_motor = tau / gear_ratio                      (N m)
+    current   = tau_motor / torque_constant           (A)
+    voltage   = resistance * current + torque_constant * gear_ratio * v   (V)
+    pwm       = pwm_sign * voltage / volts_per_pwm    (counts; hardware sign)
+
+The parameters live in ``rcm_kin/parameters/psm_drive.toml`` (documented there); the shipped
+set is the calibrated one (:mod:`rcm_kin.calibration`).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+import numpy as np
+
+from rcm_kin.errors import RcmKinError
+
+DEFAULT_PARAMETERS = Path(__file__).resolve().parents[1] / "parameters" / "psm_drive.toml"
+DRIVEN = ("roll", "pitch", "insertion")
+
+
+@dataclass(frozen=True)
+class JointDrive:
+    """Drive constants of one joint (SI; PWM in counts)."""
+
+    gear_ratio: float
+    torque_constant: float
+    resistance: float
+    volts_per_pwm: float
+    pwm_sign: float
+    pwm_limit: float
+    rotor_inertia: float
+    viscous: float
+    coulomb: float
+
+    @property
+    def pwm_per_torque(self) -> float:
+        """Static gain: PWM counts per joint N m (N), hardware sign included."""
+        return self.pwm_sign * self.resistance / (self.torque_constant * self.gear_ratio * self.volts_per_pwm)
+
+    @property
+    def reflected_inertia(self) -> float:
+        """Rotor inertia seen at the joint (kg m^2, or kg for the insertion)."""
+        return self.rotor_inertia * self.gear_ratio**2
+
+
+@dataclass(frozen=True)
+class DriveParameters:
+    """The drives of the driven joints and the calibrated gravity offsets."""
+
+    joints: dict[str, JointDrive]
+    gravity_offsets: dict[str, np.ndarray]   # link -> first moment (kg m) in the link's frame
+    source: str = ""
+
+    def __getitem__(self, joint: str) -> JointDrive:
+        return self.joints[joint]
+
+
+@dataclass(frozen=True)
+class DriveEffort:
+    """What the drives must do, per driven joint (arrays of shape (..., 3) in DRIVEN order)."""
+
+    tau: np.ndarray            # joint torque/force (N m, N)
+    motor_torque: np.ndarray   # N m
+    current: np.ndarray        # A
+    voltage: np.ndarray        # V (positive = increases the joint)
+    pwm: np.ndarray            # counts, hardware sign, before saturation
+    saturated: np.ndarray      # bool: |pwm| above the firmware limit
+
+
+def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
+    """Read a drive parameter file (default: the shipped, calibrated one)."""
+    path = Path(path) if path is not None else DEFAULT_PARAMETERS
+    try:
+        raw = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise RcmKinError(f"no drive parameter file at {path}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise RcmKinError(f"{path}: not valid TOML ({exc})") from None
+    names = [f.name for f in fields(JointDrive)]
+    joints = {}
+    for joint in DRIVEN:
+        entry = raw.get(joint)
+        if not isinstance(entry, dict) or set(names) - set(entry):
+            raise RcmKinError(f"{path}: [{joint}] needs {', '.join(names)}")
+        try:
+            joints[joint] = JointDrive(**{n: float(entry[n]) for n in names})
+        except (TypeError, ValueError):
+            raise RcmKinError(f"{path}: [{joint}] values must be numbers") from None
+    offsets = {}
+    for link, value in raw.get("gravity_offsets", {}).items():
+        v = np.asarray(value, dtype=float)
+        if v.shape != (3,):
+            raise RcmKinError(f"{path}: gravity_offsets.{link} must be 3 numbers (kg m)")
+        offsets[link] = v
+    return DriveParameters(joints, offsets, str(path))
+
+
+def with_joint(params: DriveParameters, joint: str, **changes) -> DriveParameters:
+    """A copy of ``params`` with some constants of one joint changed."""
+    joints = dict(params.joints)
+    joints[joint] = replace(joints[joint], **changes)
+    return replace(params, joints=joints)
+
+
+def drive_effort(params: DriveParameters, tau, v=None) -> DriveEffort:
+    """Motor torque, current, voltage and PWM for joint torques ``tau`` (..., 3) of the driven
+    joints (roll, pitch, insertion) at joint velocities ``v`` (default 0: holding)."""
+    tau = np.asarray(tau, dtype=float)
+    if tau.shape[-1:] != (3,):
+        raise RcmKinError(f"drive_effort takes torques of the 3 driven joints ({', '.join(DRIVEN)})")
+    v = np.zeros_like(tau) if v is None else np.broadcast_to(np.asarray(v, dtype=float), tau.shape)
+    d = [params[j] for j in DRIVEN]
+    gear, kt, res, vpp, sign, limit = (np.array([getattr(x, a) for x in d]) for a in
+                                       ("gear_ratio", "torque_constant", "resistance", "volts_per_pwm",
+                                        "pwm_sign", "pwm_limit"))
+    motor_torque = tau / gear
+    current = motor_torque / kt
+    voltage = res * current + kt * gear * v
+    pwm = sign * voltage / vpp
+    return DriveEffort(tau, motor_torque, current, voltage, pwm, np.abs(pwm) > limit)
+
+
+def pwm_to_torque(params: DriveParameters, pwm) -> np.ndarray:
+    """Static joint torque (..., 3) produced by PWM counts (..., 3) at zero velocity."""
+    pwm = np.asarray(pwm, dtype=float)
+    return pwm / np.array([params[j].pwm_per_torque for j in DRIVEN])

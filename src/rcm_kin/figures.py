@@ -1,0 +1,68 @@
+"""Matplotlib figures (files only, no display): heat maps of the holding effort and the curves of
+thesis Figs 4.6/4.7 (roll effort versus roll, pitch effort versus pitch, each at several values
+of the other joint)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+
+def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0) -> Path:
+    """PWM and voltage heat maps of roll and pitch over the roll x pitch grid at one insertion."""
+    e = gmap.effort
+    fig, axes = plt.subplots(2, 2, figsize=(10, 8), constrained_layout=True)
+    extent = [gmap.roll_deg[0], gmap.roll_deg[-1], gmap.pitch_deg[0], gmap.pitch_deg[-1]]
+    for col, (joint, k) in enumerate((("roll", 0), ("pitch", 1))):
+        for row, (quantity, unit) in enumerate((("pwm", "counts"), ("voltage", "V"))):
+            data = getattr(e, quantity)[:, :, insertion_index, k]
+            ax = axes[row, col]
+            im = ax.imshow(data, origin="lower", extent=extent, aspect="auto", cmap="coolwarm",
+                           vmin=-np.abs(data).max(), vmax=np.abs(data).max())
+            ax.contour(gmap.roll_deg, gmap.pitch_deg, data, colors="k", linewidths=0.5, levels=9)
+            ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=f"{joint} holding {quantity} ({unit})")
+            fig.colorbar(im, ax=ax)
+    fig.suptitle(f"Holding effort at insertion {gmap.insertion[insertion_index] * 1e3:.0f} mm "
+                 "(PWM: hardware sign, positive decreases the angle)")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def thesis_trend_curves(gmap, path: str | Path, insertion_index: int = 0, others=(-15.0, 0.0, 15.0)) -> Path:
+    """Fig 4.6 (|roll voltage| vs roll) and Fig 4.7 (pitch voltage vs pitch), computed."""
+    e = gmap.effort
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    for other in others:
+        i = int(np.argmin(np.abs(gmap.pitch_deg - other)))
+        a.plot(gmap.roll_deg, np.abs(e.voltage[i, :, insertion_index, 0]), label=f"pitch {gmap.pitch_deg[i]:.0f} deg")
+        j = int(np.argmin(np.abs(gmap.roll_deg - other)))
+        b.plot(gmap.pitch_deg, e.voltage[:, j, insertion_index, 1], label=f"roll {gmap.roll_deg[j]:.0f} deg")
+    a.set(xlabel="roll (deg)", ylabel="|roll motor voltage| (V)", title="roll holding voltage (cf. thesis Fig 4.6)")
+    b.set(xlabel="pitch (deg)", ylabel="pitch motor voltage (V)", title="pitch holding voltage (cf. thesis Fig 4.7)")
+    for ax in (a, b):
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def insertion_curves(gmap, path: str | Path) -> Path:
+    """Holding force of the insertion and torques of roll and pitch versus insertion."""
+    e = gmap.effort
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), constrained_layout=True)
+    for k, (ax, name, unit) in enumerate(zip(axes, ("roll", "pitch", "insertion"), ("N m", "N m", "N"))):
+        ax.plot(gmap.insertion * 1e3, e.tau[0, 0, :, k])
+        ax.set(xlabel="insertion (mm)", ylabel=f"{name} holding ({unit})",
+               title=f"roll {gmap.roll_deg[0]:.0f}, pitch {gmap.pitch_deg[0]:.0f} deg")
+        ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)

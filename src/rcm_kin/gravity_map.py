@@ -1,0 +1,72 @@
+"""Holding torque, voltage and PWM of the PSM's driven joints over pose grids, as CSV and figures.
+
+Grids are roll x pitch at one insertion, or a sweep of insertion; every pose is evaluated by
+the vectorised gravity (:func:`rcm_kin.dynamics.gravity.gravity_batch`) with the calibrated
+gravity offsets, then through the drive model. Angles in the CSV are degrees (for people);
+torques N m (insertion N), voltage V, PWM counts with the hardware sign.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rcm_kin.dynamics.drive import DRIVEN, DriveEffort, DriveParameters, drive_effort
+from rcm_kin.dynamics.gravity import gravity_batch
+from rcm_kin.errors import RcmKinError
+
+
+@dataclass(frozen=True)
+class GravityMap:
+    roll_deg: np.ndarray        # (R,)
+    pitch_deg: np.ndarray       # (P,)
+    insertion: np.ndarray       # (I,) m
+    effort: DriveEffort         # arrays of shape (P, R, I, 3): pitch rows, roll columns
+
+
+def parse_range(text: str, what: str) -> tuple[float, float, int]:
+    """``LO:HI:N`` -> (LO, HI, N), with a clear error."""
+    try:
+        lo, hi, n = text.split(":")
+        lo, hi, n = float(lo), float(hi), int(n)
+    except ValueError:
+        raise RcmKinError(f"{what} must be LO:HI:N (degrees, degrees, count), got '{text}'") from None
+    if n < 1 or not (np.isfinite(lo) and np.isfinite(hi)) or (n > 1 and hi <= lo):
+        raise RcmKinError(f"{what} {text}: need LO < HI and N >= 1")
+    return lo, hi, n
+
+
+def gravity_map(robot, drive: DriveParameters, roll_deg, pitch_deg, insertion, progress: bool = False) -> GravityMap:
+    """Holding effort over the grid roll x pitch x insertion (degrees, degrees, metres)."""
+    roll_deg, pitch_deg, insertion = (np.atleast_1d(np.asarray(x, dtype=float)) for x in (roll_deg, pitch_deg, insertion))
+    for name, values, unit in (("roll", np.radians(roll_deg), "deg"), ("pitch", np.radians(pitch_deg), "deg"),
+                               ("insertion", insertion, "m")):
+        i = robot.actuated.index(name)
+        lo, hi = robot.lower[i], robot.upper[i]
+        if values.min() < lo - 1e-12 or values.max() > hi + 1e-12:
+            shown = (np.degrees([lo, hi]) if unit == "deg" else [lo, hi])
+            raise RcmKinError(f"{name} range outside the joint limits [{shown[0]:g}, {shown[1]:g}] {unit}")
+    P, R, I = np.meshgrid(np.radians(pitch_deg), np.radians(roll_deg), insertion, indexing="ij")
+    Q = np.zeros((P.size, robot.nq))
+    Q[:, 0], Q[:, 1], Q[:, 2] = R.ravel(), P.ravel(), I.ravel()
+    tau = gravity_batch(robot, Q, drive.gravity_offsets, progress=progress)[:, :3]
+    effort = drive_effort(drive, tau.reshape(P.shape + (3,)))
+    return GravityMap(roll_deg, pitch_deg, insertion, effort)
+
+
+def write_csv(gmap: GravityMap, path: str | Path) -> Path:
+    """One row per pose: angles, insertion, then tau, voltage and PWM of each driven joint."""
+    path = Path(path)
+    header = ["roll_deg", "pitch_deg", "insertion_m"] + [f"{q}_{j}" for q in ("tau", "voltage", "pwm") for j in DRIVEN]
+    P, R, I = np.meshgrid(gmap.pitch_deg, gmap.roll_deg, gmap.insertion, indexing="ij")
+    e = gmap.effort
+    table = np.column_stack([R.ravel(), P.ravel(), I.ravel(), e.tau.reshape(-1, 3), e.voltage.reshape(-1, 3),
+                             e.pwm.reshape(-1, 3)])
+    with path.open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(header)
+        writer.writerows(np.round(table, 9).tolist())
+    return path
