@@ -1,7 +1,8 @@
 """``rcm-kin report``: the main job on the bundled models, written as a browsable index.html.
 
-Sections so far: model summary and kinematic self-checks (loop closure, constrained vs
-reduced model, RCM fixity, IK round trips). Later stages of the pipeline add their sections.
+Sections so far: model summary, kinematic self-checks (loop closure, constrained vs reduced
+model, RCM fixity, IK round trips), holding-effort maps with the thesis Fig 4.6/4.7 curves, the
+drive parameters and the counterweight design. Later stages of the pipeline add theirs.
 """
 
 from __future__ import annotations
@@ -81,6 +82,56 @@ def model_summary(name: str) -> dict:
                 loops=[c.loop.name for c in robot.constraints])
 
 
+def gravity_section(out: Path, n: int = 61) -> list[str]:
+    """Holding-effort maps (CSV, PNG), trend curves and the counterweight design."""
+    from rcm_kin.counterweights import design_counterweights, workspace_grid
+    from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
+    from rcm_kin.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
+    from rcm_kin.gravity_map import gravity_map, write_csv
+
+    psm, drive = load_robot("psm"), load_drive_parameters()
+    grid = np.linspace(-30, 30, n)
+    gmap = gravity_map(psm, drive, grid, grid, [0.08])
+    write_csv(gmap, out / "torque_map.csv")
+    effort_heatmaps(gmap, out / "torque_map.png")
+    thesis_trend_curves(gmap, out / "trend_curves.png")
+    sweep = gravity_map(psm, drive, [0.0], [0.0], np.linspace(psm.lower[2], psm.upper[2], 41))
+    write_csv(sweep, out / "insertion_map.csv")
+    insertion_curves(sweep, out / "insertion_map.png")
+
+    without = load_robot("psm", counterweights=False)
+    cad = DriveParameters(drive.joints, {})
+    Q = workspace_grid(without)
+    designs = [("osMDV as built", design_counterweights(without, cad, Q, 2.63, 1.65, weights=(1.0, 0.0),
+                                                         dpm_position=(0.15010, np.radians(7.95)))),
+               ("roll and pitch, both designed", design_counterweights(without, cad, Q, 2.63, 1.65))]
+    rows = [[name, f"{d.main_mass:.2f} kg at {d.main_distance * 1e3:.1f} mm",
+             f"{d.dpm_mass:.2f} kg at {d.dpm_distance * 1e3:.1f} mm, {np.degrees(d.dpm_angle):.2f} deg",
+             f"{d.rms_pwm[0]:.2f} / {d.peak_pwm[0]:.2f}",
+             f"{d.rms_pwm[1]:.2f} / {d.peak_pwm[1]:.2f}" if name != "osMDV as built" else "not weighed"]
+            for name, d in designs]
+    drive_rows = [[j, f"{d.gear_ratio:.4g}", f"{d.volts_per_pwm:.4g}", f"{d.pwm_per_torque:+.3f}",
+                   f"{d.pwm_limit:g}", f"{d.coulomb:.3g}"] for j, d in drive.joints.items()]
+    return [
+        "<h2>Holding effort (gravity through the calibrated drive model), insertion 80 mm</h2>",
+        '<p><img src="torque_map.png" width="700"><br><img src="trend_curves.png" width="700"><br>'
+        '<img src="insertion_map.png" width="700"></p>',
+        '<p>Data: <a href="torque_map.csv">torque_map.csv</a>, <a href="insertion_map.csv">insertion_map.csv</a>'
+        f' ({n} x {n} poses; PWM with the hardware sign: positive decreases the angle).</p>',
+        "<h3>Drive parameters</h3>",
+        _table(drive_rows, ["joint", "gear ratio", "V per PWM", "PWM per N m (N)", "PWM limit", "Coulomb (N m, N)"]),
+        f"<p>Source: {html.escape(drive.source)}; calibrated gravity offsets (kg m): "
+        + html.escape(", ".join(f"{k} {np.round(v, 4).tolist()}" for k, v in drive.gravity_offsets.items())) + "</p>",
+        "<h3>Counterweight design (CAD model, roll x pitch +-30 deg, 13 x 13 grid)</h3>",
+        _table(rows, ["design", "main counterweight", "DPM counterweight", "roll RMS / peak PWM",
+                      "pitch RMS / peak PWM"]),
+        "<p>The osMDV values are 2.63 kg at 200.28 mm and 1.65 kg at 150.10 mm, 7.95 deg. Holding the DPM "
+        "counterweight where osMDV put it, the roll-balancing main counterweight comes out as above. Balancing "
+        "pitch too needs the DPM counterweight about twice as far out: the parallelogram as built is not balanced "
+        "in pitch, as the large measured pitch holding effort shows.</p>",
+    ]
+
+
 def _table(rows: list[list], header: list[str]) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
@@ -111,6 +162,7 @@ def write_report(out: str | Path) -> Path:
                         ["largest discrepancy", "value (SI)"]))
     parts.append('<p>Data: <a href="model_summary.json">model_summary.json</a>, '
                  '<a href="kinematic_checks.json">kinematic_checks.json</a></p>')
+    parts += gravity_section(out)
     style = "<style>body{font-family:sans-serif;max-width:60em;margin:2em auto}td,th{padding:2px 8px}</style>"
     index = out / "index.html"
     index.write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>rcm-kin report</title>{style}"
