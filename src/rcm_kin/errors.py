@@ -1,4 +1,8 @@
-"""The one exception type for user errors (bad input, unreachable targets, bad files)."""
+"""The one exception type for user errors (bad input, unreachable targets, bad files), and the
+TOML reader every parameter file goes through."""
+
+import tomllib
+from pathlib import Path
 
 
 class RcmKinError(ValueError):
@@ -6,3 +10,13 @@ class RcmKinError(ValueError):
 
     The CLI prints it as one line ``error: <message>`` and exits with status 2.
     """
+
+
+def read_toml(path: Path, what: str) -> dict:
+    """The parsed TOML file ``path``; a missing or malformed file is an RcmKinError naming ``what``."""
+    try:
+        return tomllib.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise RcmKinError(f"no {what} at {path}") from None
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise RcmKinError(f"{path}: not valid TOML ({exc})") from None

@@ -6,13 +6,12 @@ Lengths are in metres and angles in radians, in the frame of the link named.
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, read_toml
 
 
 @dataclass(frozen=True)
@@ -74,12 +73,7 @@ def _text(entry: dict, key: str, where: str) -> str:
 def read_description(path: str | Path) -> RobotDescription:
     """Read and check a sidecar file; errors name the file and the entry at fault."""
     path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise RcmKinError(f"no robot description at {path}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise RcmKinError(f"{path}: not valid TOML ({exc})") from None
+    raw = read_toml(path, "robot description")
 
     where = str(path)
     urdf = path.parent / _text(raw, "urdf", where)

@@ -15,13 +15,12 @@ set is the calibrated one (:mod:`rcm_kin.calibration`).
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, read_toml
 
 DEFAULT_PARAMETERS = Path(__file__).resolve().parents[1] / "parameters" / "psm_drive.toml"
 DRIVEN = ("roll", "pitch", "insertion")
@@ -79,12 +78,7 @@ class DriveEffort:
 def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
     """Read a drive parameter file (default: the shipped, calibrated one)."""
     path = Path(path) if path is not None else DEFAULT_PARAMETERS
-    try:
-        raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise RcmKinError(f"no drive parameter file at {path}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise RcmKinError(f"{path}: not valid TOML ({exc})") from None
+    raw = read_toml(path, "drive parameter file")
     names = [f.name for f in fields(JointDrive)]
     joints = {}
     for joint in DRIVEN:
