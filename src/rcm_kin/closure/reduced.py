@@ -8,6 +8,8 @@ ABA and analytic derivatives do not support mimic joints.)
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pinocchio as pin
 
@@ -25,24 +27,30 @@ def build_reduced_model(tree: pin.Model, passive: tuple[PassiveRelation, ...]) -
     return model
 
 
-def tree_configuration(robot, q: np.ndarray) -> np.ndarray:
-    """Open-tree configuration of actuated ``q``, passive joints from the linear relations."""
-    q_tree = np.zeros(robot.tree.nq)
-    q_tree[robot.tree_q_actuated] = q
-    actuated = robot.description.actuated
-    for k, relation in enumerate(robot.description.passive):
-        q_tree[robot.tree_q_passive[k]] = relation.multiplier * q[actuated.index(relation.follows)] + relation.offset
-    return q_tree
+def tree_configuration(robot, q) -> np.ndarray:
+    """Open-tree configuration(s) of actuated ``q``, passive joints from the linear relations:
+    ``q_tree = S q + offsets``. ``q`` is one pose (nq,) or a stack (N, nq)."""
+    S, offsets = _linear_relations(robot)
+    return np.asarray(q, dtype=float) @ S.T + offsets
 
 
 def relation_jacobian(robot) -> np.ndarray:
     """``S = d q_tree / d q`` of the linear relations: (tree nv) x (actuated), constant."""
+    return _linear_relations(robot)[0].copy()
+
+
+@functools.lru_cache(maxsize=None)
+def _linear_relations(robot) -> tuple[np.ndarray, np.ndarray]:
+    """``S`` and the offsets of ``q_tree = S q + offsets``, built once per robot (read-only)."""
     S = np.zeros((robot.tree.nv, robot.nq))
     S[robot.tree_q_actuated, np.arange(robot.nq)] = 1.0
+    offsets = np.zeros(robot.tree.nq)
     actuated = robot.description.actuated
     for k, relation in enumerate(robot.description.passive):
         S[robot.tree_q_passive[k], actuated.index(relation.follows)] = relation.multiplier
-    return S
+        offsets[robot.tree_q_passive[k]] = relation.offset
+    S.flags.writeable = offsets.flags.writeable = False
+    return S, offsets
 
 
 def reduced_mass_matrix(robot, q: np.ndarray) -> np.ndarray:

@@ -19,7 +19,7 @@ import pinocchio as pin
 from tqdm import tqdm
 
 from rcm_kin.closure import constrained
-from rcm_kin.closure.reduced import reduced_gravity, relation_jacobian
+from rcm_kin.closure.reduced import reduced_gravity, relation_jacobian, tree_configuration
 from rcm_kin.errors import RcmKinError
 
 
@@ -96,18 +96,10 @@ def _rotate(R: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return R[:, 0, None] * B[0] + R[:, 1, None] * B[1] + R[:, 2, None] * B[2]
 
 
-def tree_configuration_batch(robot, Q: np.ndarray) -> np.ndarray:
-    """(N, tree nq) open-tree configurations of (N, nq) actuated poses (linear loop relations)."""
-    offsets = np.zeros(robot.tree.nq)
-    for k, relation in enumerate(robot.description.passive):
-        offsets[robot.tree_q_passive[k]] = relation.offset
-    return Q @ relation_jacobian(robot).T + offsets
-
-
 def tree_kinematics_batch(robot, Q: np.ndarray) -> TreeKinematicsBatch:
     """Placements of all open-tree joints at (N, nq) actuated poses."""
     model = robot.tree
-    Qt = tree_configuration_batch(robot, Q)
+    Qt = tree_configuration(robot, Q)
     n = len(Q)
     R = [np.broadcast_to(np.eye(3)[:, :, None], (3, 3, n))]
     p = [np.zeros((3, n))]
