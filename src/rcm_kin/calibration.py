@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from rcm_kin.dynamics.drive import DriveParameters, with_joint
+from rcm_kin.dynamics.drive import DriveParameters, drive_effort, with_joint
 from rcm_kin.dynamics.gravity import gravity_batch
 from rcm_kin.errors import RcmKinError
 from rcm_kin.telemetry import TelemetryLog, load_telemetry, step_index
@@ -109,7 +109,7 @@ def apply_values(base: DriveParameters, values) -> DriveParameters:
 def predict_pwm(robot, params: DriveParameters, points) -> np.ndarray:
     """(n, 2) holding PWM of roll and pitch at the points' poses."""
     tau = gravity_batch(robot, _poses(robot, points), params.gravity_offsets)
-    return tau[:, :2] * np.array([params["roll"].pwm_per_torque, params["pitch"].pwm_per_torque])
+    return drive_effort(params, tau[:, :3]).pwm[:, :2]
 
 
 def calibrate(robot, base: DriveParameters, points) -> CalibrationResult:
@@ -146,7 +146,10 @@ def write_parameters(params: DriveParameters, path: str | Path, header: str = ""
     lines += ["", "[gravity_offsets]"]
     lines += [f"{link} = [{', '.join(repr(float(x)) for x in h)}]" for link, h in params.gravity_offsets.items()]
     path = Path(path)
-    path.write_text("\n".join(lines) + "\n")
+    try:
+        path.write_text("\n".join(lines) + "\n")
+    except OSError as exc:
+        raise RcmKinError(f"cannot write the parameter file {path}: {exc.strerror}") from None
     return path
 
 

@@ -8,12 +8,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.robot import GRAVITY, load_robot, robot_names
 
 EPILOG_INFO = "example: rcm-kin info psm --json"
@@ -163,21 +162,14 @@ def cmd_gravity(args) -> None:
 
 def cmd_torque_map(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
-    from rcm_kin.gravity_map import gravity_map, parse_range, write_csv
+    from rcm_kin.gravity_map import parse_range, write_gravity_maps
 
     if args.robot != "psm":
         raise RcmKinError("torque maps are for the PSM's driven joints: rcm-kin torque-map psm ...")
     robot = load_robot("psm", counterweights=not args.no_counterweights)
     drive = load_drive_parameters(args.params)
-    out = _out_dir(args.out)
     roll, pitch = (np.linspace(*parse_range(t, w)) for t, w in ((args.roll, "--roll"), (args.pitch, "--pitch")))
-    gmap = gravity_map(robot, drive, roll, pitch, [args.insertion], progress=True)
-    files = [write_csv(gmap, out / "torque_map.csv"), effort_heatmaps(gmap, out / "torque_map.png"),
-             thesis_trend_curves(gmap, out / "trend_curves.png")]
-    lo, hi = robot.lower[2], robot.upper[2]
-    sweep = gravity_map(robot, drive, [0.0], [0.0], np.linspace(lo, hi, 81))
-    files += [write_csv(sweep, out / "insertion_map.csv"), insertion_curves(sweep, out / "insertion_map.png")]
+    gmap, files = write_gravity_maps(robot, drive, roll, pitch, args.insertion, output_folder(args.out), progress=True)
     payload = {"files": [str(f) for f in files], "poses": int(gmap.effort.tau[..., 0].size)}
     _emit(args, payload, "\n".join(f"wrote {f}" for f in files))
 
@@ -210,15 +202,6 @@ def cmd_calibrate(args) -> None:
     if args.out:
         lines.append(f"wrote {payload['written']}")
     _emit(args, payload, "\n".join(lines))
-
-
-def _out_dir(path: str) -> Path:
-    out = Path(path)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise RcmKinError(f"cannot create the output folder {out}: {exc.strerror}") from None
-    return out
 
 
 def cmd_report(args) -> None:

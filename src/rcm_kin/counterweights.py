@@ -34,7 +34,7 @@ class CounterweightDesign:
     dpm_distance: float    # m from the pitch pivot
     dpm_angle: float       # rad from straight down, towards the RCM
     rms_pwm: np.ndarray    # (2,) roll, pitch RMS holding PWM over the grid with this design
-    peak_pwm: np.ndarray   # (2,) largest |PWM|
+    peak_pwm: np.ndarray   # (2,) largest |PWM| (both joints, whatever the weights)
 
 
 def workspace_grid(robot, roll_deg=(-30, 30, 13), pitch_deg=(-30, 30, 13), insertion: float = 0.080) -> np.ndarray:
@@ -58,15 +58,15 @@ def design_counterweights(robot_without, drive: DriveParameters, Q, main_mass: f
         raise RcmKinError("counterweight masses must be positive (kg)")
     pivot = robot_without.tree.frames[robot_without.tree.getFrameId("drive_link")]
     pivot_x = robot_without.tree.jointPlacements[pivot.parentJoint].translation[0]   # pitch pivot on the main axis
-    scale = np.array([drive["roll"].pwm_per_torque, drive["pitch"].pwm_per_torque]) * np.asarray(weights, float)
+    gain = np.array([drive["roll"].pwm_per_torque, drive["pitch"].pwm_per_torque])
 
     def effort(link, point, mass=1.0):
-        return (point_mass_gravity_batch(robot_without, Q, link, point)[:, :2] * scale).ravel() * mass
+        return (point_mass_gravity_batch(robot_without, Q, link, point)[:, :2] * gain).ravel() * mass
 
-    base = (gravity_batch(robot_without, Q)[:, :2] * scale).ravel()
+    base = (gravity_batch(robot_without, Q)[:, :2] * gain).ravel()
     main0 = effort("roll_link", [pivot_x, 0, 0], main_mass)
     dpm0 = effort("drive_link", [0, 0, 0], dpm_mass)
-    # unknowns: r0 (main), x1 = r1 sin(phi1), z1 = r1 cos(phi1) (DPM, below the pivot)
+    # holding PWM = A x - b, unknowns x: r0 (main), x1 = r1 sin(phi1), z1 = r1 cos(phi1) (DPM, below the pivot)
     columns = [effort("roll_link", [pivot_x, 0, -1], main_mass) - main0,
                effort("drive_link", [1, 0, 0], dpm_mass) - dpm0,
                effort("drive_link", [0, 0, -1], dpm_mass) - dpm0]
@@ -77,9 +77,10 @@ def design_counterweights(robot_without, drive: DriveParameters, Q, main_mass: f
         r1, phi1 = dpm_position
         b = b - columns[1] * r1 * np.sin(phi1) - columns[2] * r1 * np.cos(phi1)
         A, lo, hi = np.column_stack(columns[:1]), [0], [max_distance]
-    sol = lsq_linear(A, b, bounds=(lo, hi))
-    r0, (x1, z1) = sol.x[0], (sol.x[1:] if dpm_position is None else
-                              (dpm_position[0] * np.sin(dpm_position[1]), dpm_position[0] * np.cos(dpm_position[1])))
-    pwm = (A @ sol.x - b).reshape(-1, 2) / np.asarray(weights, float).clip(1e-300)
+    w = np.tile(np.asarray(weights, dtype=float), len(Q))        # rows alternate roll, pitch
+    sol = lsq_linear(A * w[:, None], b * w, bounds=(lo, hi))
+    r0 = sol.x[0]
+    x1, z1 = sol.x[1:] if dpm_position is None else (r1 * np.sin(phi1), r1 * np.cos(phi1))
+    pwm = (A @ sol.x - b).reshape(-1, 2)
     return CounterweightDesign(main_mass, float(r0), dpm_mass, float(np.hypot(x1, z1)), float(np.arctan2(x1, z1)),
                                np.sqrt(np.mean(pwm**2, axis=0)), np.max(np.abs(pwm), axis=0))

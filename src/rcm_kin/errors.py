@@ -1,5 +1,5 @@
 """The one exception type for user errors (bad input, unreachable targets, bad files), and the
-TOML reader every parameter file goes through."""
+file helpers that turn the operating system's errors into it."""
 
 import tomllib
 from pathlib import Path
@@ -18,5 +18,17 @@ def read_toml(path: Path, what: str) -> dict:
         return tomllib.loads(Path(path).read_text())
     except FileNotFoundError:
         raise RcmKinError(f"no {what} at {path}") from None
+    except OSError as exc:
+        raise RcmKinError(f"cannot read the {what} {path}: {exc.strerror}") from None
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise RcmKinError(f"{path}: not valid TOML ({exc})") from None
+
+
+def output_folder(path) -> Path:
+    """``path`` as a created folder; an OSError becomes an RcmKinError naming the folder."""
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RcmKinError(f"cannot create the output folder {out}: {exc.strerror}") from None
+    return out

@@ -70,3 +70,18 @@ def write_csv(gmap: GravityMap, path: str | Path) -> Path:
         writer.writerow(header)
         writer.writerows(np.round(table, 9).tolist())
     return path
+
+
+def write_gravity_maps(robot, drive: DriveParameters, roll_deg, pitch_deg, insertion: float, out: Path,
+                       progress: bool = False) -> tuple[GravityMap, list[Path]]:
+    """The roll x pitch map at one insertion (m) and an insertion sweep at roll = pitch = 0, as
+    CSV and figures in folder ``out``: torque_map.csv/.png, trend_curves.png, insertion_map.csv/.png."""
+    from rcm_kin.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
+
+    gmap = gravity_map(robot, drive, roll_deg, pitch_deg, [insertion], progress=progress)
+    i = robot.actuated.index("insertion")
+    sweep = gravity_map(robot, drive, [0.0], [0.0], np.linspace(robot.lower[i], robot.upper[i], 81))
+    files = [write_csv(gmap, out / "torque_map.csv"), effort_heatmaps(gmap, out / "torque_map.png"),
+             thesis_trend_curves(gmap, out / "trend_curves.png"),
+             write_csv(sweep, out / "insertion_map.csv"), insertion_curves(sweep, out / "insertion_map.png")]
+    return gmap, files

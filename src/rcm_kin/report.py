@@ -17,7 +17,7 @@ import pinocchio as pin
 import yourdfpy
 
 from rcm_kin.closure import constrained, reduced
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import output_folder
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.kinematics.numeric_ik import solve_ik
 from rcm_kin.kinematics.psm_ik import rcm_geometry, shaft_tip_ik
@@ -86,29 +86,22 @@ def gravity_section(out: Path, n: int = 61) -> list[str]:
     """Holding-effort maps (CSV, PNG), trend curves and the counterweight design."""
     from rcm_kin.counterweights import design_counterweights, workspace_grid
     from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
-    from rcm_kin.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
-    from rcm_kin.gravity_map import gravity_map, write_csv
+    from rcm_kin.gravity_map import write_gravity_maps
 
-    psm, drive = load_robot("psm"), load_drive_parameters()
+    drive = load_drive_parameters()
     grid = np.linspace(-30, 30, n)
-    gmap = gravity_map(psm, drive, grid, grid, [0.08])
-    write_csv(gmap, out / "torque_map.csv")
-    effort_heatmaps(gmap, out / "torque_map.png")
-    thesis_trend_curves(gmap, out / "trend_curves.png")
-    sweep = gravity_map(psm, drive, [0.0], [0.0], np.linspace(psm.lower[2], psm.upper[2], 41))
-    write_csv(sweep, out / "insertion_map.csv")
-    insertion_curves(sweep, out / "insertion_map.png")
+    write_gravity_maps(load_robot("psm"), drive, grid, grid, 0.08, out)
 
     without = load_robot("psm", counterweights=False)
     cad = DriveParameters(drive.joints, {})
     Q = workspace_grid(without)
-    designs = [("osMDV as built", design_counterweights(without, cad, Q, 2.63, 1.65, weights=(1.0, 0.0),
+    designs = [("roll only, DPM as osMDV built it", design_counterweights(without, cad, Q, 2.63, 1.65, weights=(1.0, 0.0),
                                                          dpm_position=(0.15010, np.radians(7.95)))),
                ("roll and pitch, both designed", design_counterweights(without, cad, Q, 2.63, 1.65))]
     rows = [[name, f"{d.main_mass:.2f} kg at {d.main_distance * 1e3:.1f} mm",
              f"{d.dpm_mass:.2f} kg at {d.dpm_distance * 1e3:.1f} mm, {np.degrees(d.dpm_angle):.2f} deg",
              f"{d.rms_pwm[0]:.2f} / {d.peak_pwm[0]:.2f}",
-             f"{d.rms_pwm[1]:.2f} / {d.peak_pwm[1]:.2f}" if name != "osMDV as built" else "not weighed"]
+             f"{d.rms_pwm[1]:.2f} / {d.peak_pwm[1]:.2f}"]
             for name, d in designs]
     drive_rows = [[j, f"{d.gear_ratio:.4g}", f"{d.volts_per_pwm:.4g}", f"{d.pwm_per_torque:+.3f}",
                    f"{d.pwm_limit:g}", f"{d.coulomb:.3g}"] for j, d in drive.joints.items()]
@@ -140,11 +133,7 @@ def _table(rows: list[list], header: list[str]) -> str:
 
 def write_report(out: str | Path) -> Path:
     """Run the pipeline on the bundled models; returns the path of index.html."""
-    out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise RcmKinError(f"cannot create the report folder {out}: {exc.strerror}") from None
+    out = output_folder(out)
     summaries = [model_summary(n) for n in ("psm", "mtm")]
     checks = kinematic_checks()
     (out / "model_summary.json").write_text(json.dumps(summaries, indent=1))

@@ -51,6 +51,8 @@ def load_telemetry(path: str | Path) -> TelemetryLog:
             rows = list(csv.reader(fh))
     except FileNotFoundError:
         raise RcmKinError(f"no log file at {path}") from None
+    except OSError as exc:
+        raise RcmKinError(f"cannot read the log {path}: {exc.strerror}") from None
     except (UnicodeDecodeError, csv.Error):
         raise RcmKinError(f"{path}: not a CSV text file") from None
     if len(rows) < 3:
