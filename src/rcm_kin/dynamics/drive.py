@@ -15,7 +15,7 @@ set is the calibrated one (:mod:`rcm_kin.calibration`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import MISSING, dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +39,7 @@ class JointDrive:
     rotor_inertia: float
     viscous: float
     coulomb: float
+    coulomb_velocity: float = 0.02   # rad/s (m/s): width of the smoothed Coulomb law tanh(v / width)
 
     @property
     def pwm_per_torque(self) -> float:
@@ -80,13 +81,14 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
     path = Path(path) if path is not None else DEFAULT_PARAMETERS
     raw = read_toml(path, "drive parameter file")
     names = [f.name for f in fields(JointDrive)]
+    required = [f.name for f in fields(JointDrive) if f.default is MISSING]
     joints = {}
     for joint in DRIVEN:
         entry = raw.get(joint)
-        if not isinstance(entry, dict) or set(names) - set(entry):
-            raise RcmKinError(f"{path}: [{joint}] needs {', '.join(names)}")
+        if not isinstance(entry, dict) or set(required) - set(entry):
+            raise RcmKinError(f"{path}: [{joint}] needs {', '.join(required)}")
         try:
-            joints[joint] = JointDrive(**{n: float(entry[n]) for n in names})
+            joints[joint] = JointDrive(**{n: float(entry[n]) for n in names if n in entry})
         except (TypeError, ValueError):
             raise RcmKinError(f"{path}: [{joint}] values must be numbers") from None
     offsets = {}

@@ -159,14 +159,14 @@ def gravity_batch(robot, Q, offsets: dict | None = None, chunk: int = 8192, prog
     ``offsets``: extra first moments {link: (3,) kg m in the link's frame}, e.g. the calibrated
     ``DriveParameters.gravity_offsets``; they add torque but no mass."""
     Q = _poses(robot, Q)
-    moments = _offset_moments(robot, offsets or {})
+    moments = offset_moments(robot, offsets or {})
     starts = range(0, len(Q), chunk)
     if progress and len(starts) > 1:
         starts = tqdm(starts, desc="gravity", unit="chunk")
     return np.concatenate([_gravity_chunk(robot, Q[i:i + chunk], moments) for i in starts])
 
 
-def _offset_moments(robot, offsets: dict) -> dict[int, np.ndarray]:
+def offset_moments(robot, offsets: dict) -> dict[int, np.ndarray]:
     """{joint index: first moment in the joint's frame (kg m)} of link first moments."""
     moments = {}
     for link, h in offsets.items():

@@ -1,0 +1,182 @@
+"""Linear models of the driven joints at equilibria: ``dx = A dx + B du`` about ``(x0, u0)``.
+
+``x0 = [q; 0]`` is a pose held still and ``u0`` the PWM that holds it (gravity over the drive
+gain), so ``forward(x0, u0) = 0``. ``A = d xdot / dx`` and ``B = d xdot / du`` come from CasADi's
+automatic differentiation of :mod:`rcm_kin.dynamics.state_space`; :func:`linearize_pinocchio`
+gets the same matrices from Pinocchio's analytic ABA derivatives of the open tree projected
+through the loop closure, and :func:`linearize_finite_differences` by central differences, as
+independent checks. State ``[q; v]`` in SI (rad, m, rad/s, m/s), input PWM counts, output ``q``.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+from tqdm import tqdm
+
+from rcm_kin.closure.reduced import relation_jacobian, tree_configuration
+from rcm_kin.dynamics.drive import DRIVEN
+from rcm_kin.dynamics.gravity import offset_moments
+from rcm_kin.dynamics.state_space import DrivenDynamics, holding_pwm
+from rcm_kin.errors import RcmKinError
+
+
+@dataclass(frozen=True)
+class Linearization:
+    """A linear model about an equilibrium (SI state, PWM input)."""
+
+    x0: np.ndarray     # (6,) [q; v], v = 0
+    u0: np.ndarray     # (3,) holding PWM
+    A: np.ndarray      # (6, 6)
+    B: np.ndarray      # (6, 3)
+    C: np.ndarray      # (3, 6): the joint positions
+    D: np.ndarray      # (3, 3)
+    state: list[str]
+    inputs: list[str]
+
+    def as_dict(self) -> dict:
+        return {"x0": self.x0.tolist(), "u0": self.u0.tolist(), "A": self.A.tolist(), "B": self.B.tolist(),
+                "C": self.C.tolist(), "D": self.D.tolist(), "state": self.state, "input": self.inputs}
+
+
+def equilibrium(model: DrivenDynamics, q) -> tuple[np.ndarray, np.ndarray]:
+    """``(x0, u0)``: the pose ``q`` (rad, rad, m) at rest and its holding PWM."""
+    q = np.asarray(q, dtype=float).ravel()
+    if q.shape != (3,) or not np.all(np.isfinite(q)):
+        raise RcmKinError(f"an equilibrium pose is 3 finite values ({', '.join(DRIVEN)})")
+    return np.r_[q, np.zeros(3)], holding_pwm(model, q)
+
+
+def linearize(model: DrivenDynamics, q) -> Linearization:
+    """The linear model at pose ``q`` (rad, rad, m), by CasADi AD."""
+    x0, u0 = equilibrium(model, q)
+    A, B = (np.array(m) for m in model.jacobians(x0, u0))
+    C = np.hstack([np.eye(3), np.zeros((3, 3))])
+    return Linearization(x0, u0, A, B, C, np.zeros((3, 3)), model.state, model.inputs)
+
+
+@dataclass(frozen=True)
+class LinearizationGrid:
+    """Linear models over N poses."""
+
+    q: np.ndarray    # (N, 3) poses (rad, rad, m)
+    u0: np.ndarray   # (N, 3) holding PWM
+    A: np.ndarray    # (N, 6, 6)
+    B: np.ndarray    # (N, 6, 3)
+
+
+def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, progress: bool = False) -> LinearizationGrid:
+    """Linear models at (N, 3) poses with one mapped CasADi call per chunk of poses."""
+    Q = np.atleast_2d(np.asarray(Q, dtype=float))
+    if Q.ndim != 2 or Q.shape[1] != 3 or not np.all(np.isfinite(Q)):
+        raise RcmKinError(f"poses must be finite rows of 3 values ({', '.join(DRIVEN)}), got shape {Q.shape}")
+    u0, A, B = [], [], []
+    starts = range(0, len(Q), chunk)
+    for i in tqdm(starts, desc="linearise", unit="chunk", disable=not progress or len(starts) < 2):
+        q = Q[i:i + chunk]
+        gravity, jacobians = _mapped(model, len(q))
+        u = np.array(gravity(q.T)).T / model.drive.input_gain
+        a, b = jacobians(np.hstack([q, np.zeros_like(q)]).T, u.T)
+        u0.append(u)
+        A.append(np.array(a).reshape(6, -1, 6).transpose(1, 0, 2))
+        B.append(np.array(b).reshape(6, -1, 3).transpose(1, 0, 2))
+    return LinearizationGrid(Q, np.concatenate(u0), np.concatenate(A), np.concatenate(B))
+
+
+@functools.lru_cache(maxsize=8)
+def _mapped(model: DrivenDynamics, n: int) -> tuple[ca.Function, ca.Function]:
+    """Holding gravity and (A, B) evaluated at n poses in one call (CasADi map)."""
+    return model.gravity.map(n), model.jacobians.map(n)
+
+
+def linearize_finite_differences(model: DrivenDynamics, x, u, step: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, B)`` by central differences of ``forward`` (truncation error ~ step^2)."""
+    x, u = np.asarray(x, float), np.asarray(u, float)
+
+    def f(xx, uu):
+        return np.array(model.forward(xx, uu)).ravel()
+
+    A = np.column_stack([(f(x + step * e, u) - f(x - step * e, u)) / (2 * step) for e in np.eye(6)])
+    B = np.column_stack([(f(x, u + e) - f(x, u - e)) / 2 for e in np.eye(3)])   # exactly linear in u
+    return A, B
+
+
+def linearize_pinocchio(robot, model: DrivenDynamics, offsets: dict, x, u) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, B)`` from Pinocchio's analytic derivatives, independent of the CasADi transcription.
+
+    The rigid-body part is ``computeABADerivatives`` on the open tree (reflected rotor inertia as
+    the tree's armature), turned into inverse-dynamics derivatives ``d tau / dq = -M d a / dq``
+    and projected through the closure ``q_tree = S q + offsets`` (``S^T (.) S``). The
+    calibrated first moments ``h`` add ``g_h(q) = g_1(h) - g_1(0)``, the gravity of a unit mass
+    at ``h`` minus one at the link origin, differentiated by ``computeGeneralizedGravityDerivatives``.
+    The drive terms are differentiated by hand.
+    """
+    x, u = np.asarray(x, float), np.asarray(u, float)
+    q, v = x[:3], x[3:]
+    tree, S, index = _armatured_tree(robot, model), relation_jacobian(robot), [robot.actuated.index(j) for j in DRIVEN]
+    data = tree.createData()
+    q_act = model.q_fixed.copy()
+    q_act[index] = q
+    Sd = S[:, index]
+    q_tree, v_tree = tree_configuration(robot, q_act), Sd @ v
+
+    drive = model.drive
+    coulomb_slope = np.zeros(3)
+    tau_drive = drive.input_gain * u - drive.damping * v
+    if model.coulomb:
+        smooth = np.tanh(v / drive.coulomb_velocity)
+        tau_drive -= drive.coulomb * smooth
+        coulomb_slope = drive.coulomb / drive.coulomb_velocity * (1 - smooth**2)
+
+    M = Sd.T @ _symmetric(pin.crba(tree, data, q_tree)) @ Sd
+    g_offsets, dg_offsets = _offset_gravity(robot, offsets, q_tree)
+    h = Sd.T @ pin.rnea(tree, data, q_tree, v_tree, np.zeros(tree.nv)) + Sd.T @ g_offsets
+    a = np.linalg.solve(M, tau_drive - h)
+    tau_tree = pin.rnea(tree, data, q_tree, v_tree, Sd @ a)
+    da_dq, da_dv, _ = pin.computeABADerivatives(tree, data, q_tree, v_tree, tau_tree)
+    M_tree = _symmetric(data.M)
+    dtau_dq = Sd.T @ (-M_tree @ da_dq) @ Sd + Sd.T @ dg_offsets @ Sd
+    dtau_dv = Sd.T @ (-M_tree @ da_dv) @ Sd
+    Minv = np.linalg.inv(M)
+    A = np.block([[np.zeros((3, 3)), np.eye(3)],
+                  [-Minv @ dtau_dq, -Minv @ (dtau_dv + np.diag(drive.damping + coulomb_slope))]])
+    B = np.vstack([np.zeros((3, 3)), Minv @ np.diag(drive.input_gain)])
+    return A, B
+
+
+def _symmetric(M: np.ndarray) -> np.ndarray:
+    return np.triu(M) + np.triu(M, 1).T
+
+
+@functools.lru_cache(maxsize=8)
+def _armatured_tree(robot, model: DrivenDynamics) -> pin.Model:
+    tree = pin.Model(robot.tree)
+    for joint, inertia in zip(DRIVEN, model.drive.reflected_inertia):
+        tree.armature[tree.joints[tree.getJointId(joint)].idx_v] = inertia
+    return tree
+
+
+def _offset_gravity(robot, offsets: dict, q_tree: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Generalised gravity (tree nv) of mass-free first moments and its q-derivative."""
+    g, dg = np.zeros(robot.tree.nv), np.zeros((robot.tree.nv, robot.tree.nv))
+    for joint, h in offset_moments(robot, offsets).items():
+        for lever, sign in ((h, 1.0), (np.zeros(3), -1.0)):
+            unit = _unit_mass_tree(robot, joint, tuple(lever))
+            data = unit.createData()
+            g += sign * pin.computeGeneralizedGravity(unit, data, q_tree)
+            dg += sign * pin.computeGeneralizedGravityDerivatives(unit, data, q_tree)
+    return g, dg
+
+
+@functools.lru_cache(maxsize=32)
+def _unit_mass_tree(robot, joint: int, lever: tuple) -> pin.Model:
+    """The open tree with every body massless except 1 kg at ``lever`` (joint frame) on ``joint``."""
+    model = pin.Model(robot.tree)
+    for j in range(1, model.njoints):
+        model.inertias[j] = pin.Inertia.Zero()
+    model.inertias[joint] = pin.Inertia(1.0, np.array(lever), np.zeros((3, 3)))
+    return model
