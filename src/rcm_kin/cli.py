@@ -204,11 +204,73 @@ def cmd_calibrate(args) -> None:
     _emit(args, payload, "\n".join(lines))
 
 
+def _driven_model(args, coulomb: bool):
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.dynamics.state_space import driven_dynamics
+
+    if args.robot != "psm":
+        raise RcmKinError(f"the driven-joint dynamics are the PSM's (roll, pitch, insertion), not '{args.robot}'")
+    return driven_dynamics(load_robot("psm"), load_drive_parameters(args.params), coulomb=coulomb)
+
+
+def cmd_dynamics(args) -> None:
+    from rcm_kin.dynamics.state_space import check_state
+
+    model = _driven_model(args, coulomb=not args.no_coulomb)
+    x, u = check_state(np.r_[_floats(args.q, "--q"), _floats(args.v, "--v")], _floats(args.u, "--u"))
+    qdd = np.array(model.forward(x, u)).ravel()[3:]
+    lines = [f"{n:10} qdd {a:+.6g} {'m/s^2' if n == 'insertion' else 'rad/s^2'}" for n, a in zip(model.joints, qdd)]
+    _emit(args, {"qdd": qdd.tolist()}, "\n".join(lines))
+
+
+def cmd_linearize(args) -> None:
+    from rcm_kin.control.linearization import linearize
+
+    model = _driven_model(args, coulomb=not args.no_coulomb)
+    pose = _floats([args.roll, args.pitch], "--roll and --pitch")
+    lin = linearize(model, [np.radians(pose[0]), np.radians(pose[1]), args.insertion])
+    np.set_printoptions(precision=5, suppress=True, linewidth=120)
+    text = (f"equilibrium x0 = {lin.x0.round(6).tolist()} (rad, m; at rest), holding PWM u0 = {lin.u0.round(3).tolist()}"
+            f"\nstate {lin.state}, input {lin.inputs}"
+            f"{'' if model.coulomb else ' (Coulomb friction left out)'}\nA =\n{lin.A}\nB =\n{lin.B}")
+    _emit(args, lin.as_dict(), text)
+
+
+def cmd_schedule(args) -> None:
+    from rcm_kin.control.firmware_export import write_gain_schedule
+    from rcm_kin.control.gain_schedule import parse_grid, schedule_gains
+    from rcm_kin.control.weights import Weights
+    from rcm_kin.control.stability import stability_survey
+
+    if args.check_points < 2:
+        raise RcmKinError("--check-points needs at least 2 poses per axis")
+    model = _driven_model(args, coulomb=False)
+    rolls, pitches = parse_grid(args.grid)
+    weights = Weights(**{name: getattr(args, name) for name in vars(Weights())})
+    schedule = schedule_gains(model, rolls, pitches, args.insertion, weights)
+    survey = stability_survey(model, schedule, points=args.check_points)
+    files = write_gain_schedule(schedule, output_folder(args.out), survey, args.gravity_feedforward)
+    weakest = survey.weakest()
+    payload = {"files": [str(f) for f in files], "stable": survey.stable, **weakest}
+    text = "\n".join([f"wrote {f}" for f in files] + [
+        f"{'stable' if survey.stable else 'NOT STABLE'} at every grid point and with frozen interpolated gains on "
+        f"{args.check_points}x{args.check_points} poses between (400 Hz firmware loop and continuous);",
+        f"slowest mode |z| = {weakest['spectral_radius']:.4f} at roll {weakest['roll_deg']:.1f}, pitch "
+        f"{weakest['pitch_deg']:.1f} deg; least damping {weakest['min_damping']:.3f} at roll "
+        f"{weakest['min_damping_roll_deg']:.1f}, pitch {weakest['min_damping_pitch_deg']:.1f} deg"])
+    _emit(args, payload, text)
+
+
 def cmd_report(args) -> None:
     from rcm_kin.report import write_report
 
     index = write_report(args.out)
     print(f"report written: {index}")
+
+
+def _weight_budgets() -> dict:
+    from rcm_kin.control.weights import Weights
+    return vars(Weights()).copy()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -276,6 +338,53 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", help="write the calibrated parameter TOML here")
     p.add_argument("--json", action="store_true", help="parameters with uncertainty, residuals per point")
     p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser("dynamics", help="PSM driven-joint accelerations for a state and PWM input",
+                       epilog="example: rcm-kin dynamics psm --q 0.1 -0.2 0.08 --v 0 0 0 --u 10 -90 0 --json")
+    p.add_argument("robot", help="psm")
+    p.add_argument("--q", nargs=3, required=True, metavar="Q", help="roll rad, pitch rad, insertion m")
+    p.add_argument("--v", nargs=3, default=["0", "0", "0"], metavar="V", help="their rates (rad/s, m/s; default 0)")
+    p.add_argument("--u", nargs=3, default=["0", "0", "0"], metavar="U",
+                   help="PWM counts of the three drivers, hardware sign (|u| <= 255; default 0)")
+    p.add_argument("--no-coulomb", action="store_true", help="leave the smoothed Coulomb friction out")
+    p.add_argument("--params", help="drive parameter TOML (default: the shipped calibrated set)")
+    p.add_argument("--json", action="store_true", help='{"qdd": [roll rad/s^2, pitch rad/s^2, insertion m/s^2]}')
+    p.set_defaults(func=cmd_dynamics)
+
+    p = sub.add_parser("linearize", help="linear model (A, B, C, D) of the PSM driven joints at a held pose",
+                       epilog="example: rcm-kin linearize psm --roll 10 --pitch=-5 --insertion 0.08 --json")
+    p.add_argument("robot", help="psm")
+    p.add_argument("--roll", required=True, help="roll angle in degrees")
+    p.add_argument("--pitch", required=True, help="pitch angle in degrees")
+    p.add_argument("--insertion", type=float, default=0.08, help="insertion in m (default 0.08)")
+    p.add_argument("--no-coulomb", action="store_true",
+                   help="leave the smoothed Coulomb friction out (its slope at rest is set by the smoothing width)")
+    p.add_argument("--params", help="drive parameter TOML (default: the shipped calibrated set)")
+    p.add_argument("--json", action="store_true",
+                   help='{"x0", "u0", "A", "B", "C", "D", "state", "input"}: SI state [q; v], PWM input')
+    p.set_defaults(func=cmd_linearize)
+
+    p = sub.add_parser("schedule", help="model-based LQR (roll) / LQI (pitch) gain tables, C header, JSON, CSV",
+                       epilog="examples: rcm-kin schedule psm --out gains\n"
+                              "          rcm-kin schedule psm --grid=-30,-15,0,15,30:-30,0,30 --gravity-feedforward --out gains",
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("robot", help="psm")
+    p.add_argument("--grid", default="thesis",
+                   help="'thesis' (roll -20,0,20 x pitch -15,0,15 deg) or ROLLS:PITCHES in degrees, comma-separated "
+                        "(write --grid=-20,0,20:-15,0,15 when it starts with a minus)")
+    p.add_argument("--insertion", type=float, default=0.08, help="insertion of the models in m (default 0.08)")
+    p.add_argument("--gravity-feedforward", action="store_true",
+                   help="also export the holding-PWM table (u_hold) and rcm_holding_pwm()")
+    defaults = _weight_budgets()
+    for name, value in defaults.items():
+        p.add_argument("--" + name.replace("_", "-"), dest=name, type=float, default=value,
+                       help=f"Bryson budget (default {value:g})")
+    p.add_argument("--check-points", type=int, default=41,
+                   help="stability check on N x N poses across the grid (default 41)")
+    p.add_argument("--params", help="drive parameter TOML (default: the shipped calibrated set)")
+    p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument("--json", action="store_true", help='{"files", "stable", weakest point}')
+    p.set_defaults(func=cmd_schedule)
 
     p = sub.add_parser("report", help="run the main job on the bundled models and write index.html",
                        epilog=EPILOG_REPORT)

@@ -1,0 +1,184 @@
+"""Model-based gain scheduling of the PSM firmware's roll LQR and pitch LQI.
+
+At each (roll, pitch) grid point the driven-joint model is linearised (Coulomb friction left
+out: see :func:`rcm_kin.dynamics.state_space.driven_dynamics`), and per axis
+
+- roll: LQR on ``[q, v]`` of the roll subsystem (python-control ``lqr``);
+- pitch: LQI on ``[q, v]`` plus the integral of the position error (``lqr`` with
+  ``integral_action``).
+
+Gains are stored in the firmware's units and signs (thesis Tables 4.4-4.8): with the error
+``e = r - y`` in degrees, ``v`` in deg/s and ``E`` the integral of ``e`` (deg s), the firmware
+applies ``u = -(Kp e + Kd v)`` (roll) and ``u = -(Kp e + Kd v + Ki E)`` (pitch), PWM counts with
+the hardware sign (positive PWM lowers the angle). The LQR law ``u = -K [y - r; v]`` therefore
+maps to ``Kp = -K_q``, ``Kd = K_v``, ``Ki = -K_z``. Between grid points the firmware interpolates
+bilinearly (table[pitch][roll]) and clamps to the edge outside.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import control
+import numpy as np
+
+from rcm_kin.control.linearization import linearize_grid
+from rcm_kin.control.weights import Weights
+from rcm_kin.dynamics.state_space import DrivenDynamics
+from rcm_kin.errors import RcmKinError
+
+DEG = 180.0 / np.pi            # deg per rad
+THESIS_ROLL_DEG = (-20.0, 0.0, 20.0)
+THESIS_PITCH_DEG = (-15.0, 0.0, 15.0)
+INSERTION_KP = 30.0e3          # firmware insertion P loop: 30 PWM per mm (counts/m)
+ROLL, PITCH, INSERTION = 0, 1, 2
+
+
+def axis_model(A: np.ndarray, B: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
+    """One joint's 2-state model ``[q; v]`` in degrees and PWM from the 6-state SI model
+    (the other joints frozen). Scaling both states by the same factor leaves ``A`` unchanged."""
+    i = [axis, axis + 3]
+    return A[np.ix_(i, i)], B[i][:, [axis]] * DEG
+
+
+def lqr_axis(a: np.ndarray, b: np.ndarray, Q: np.ndarray, R: np.ndarray, integral: bool = False) -> np.ndarray:
+    """State-feedback row ``K`` of ``u = -K x`` (python-control ``lqr``) for one axis; with
+    ``integral`` the state is augmented by the integral of the first state (LQI)."""
+    extra = {"integral_action": np.array([[1.0, 0.0]])} if integral else {}
+    K, _, _ = control.lqr(a, b, Q, R, **extra)
+    return np.asarray(K)[0]
+
+
+def roll_gains(A: np.ndarray, B: np.ndarray, weights: Weights) -> np.ndarray:
+    """``[Kp, Kd]`` (PWM/deg, PWM/(deg/s)), firmware signs, of the roll LQR at one linear model."""
+    K = lqr_axis(*axis_model(A, B, ROLL), *weights.roll())
+    return np.array([-K[0], K[1]])
+
+
+def pitch_gains(A: np.ndarray, B: np.ndarray, weights: Weights) -> np.ndarray:
+    """``[Kp, Kd, Ki]`` (PWM/deg, PWM/(deg/s), PWM/(deg s)), firmware signs, of the pitch LQI."""
+    K = lqr_axis(*axis_model(A, B, PITCH), *weights.pitch(), integral=True)
+    return np.array([-K[0], K[1], -K[2]])
+
+
+def pitch_feedforward(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``[F_v, F_a]`` of the pitch model inverse ``u_ff = pinv(B) (xdot_ref - A x_ref)``:
+    ``u_ff = F_v rdot + F_a rddot`` (PWM per deg/s, per deg/s^2) plus the position term
+    ``-pinv(B) A [r; 0]``, which is the slope of the holding PWM and is left to the gravity
+    feedforward (``u_hold``)."""
+    a, b = axis_model(A, B, PITCH)
+    pinv_b = np.linalg.pinv(b)                       # (1, 2)
+    # xdot_ref - A x_ref with x_ref = [0; rdot], xdot_ref = [rdot; rddot]
+    F_v = pinv_b @ (np.array([1.0, 0.0]) - a[:, 1])
+    F_a = pinv_b @ np.array([0.0, 1.0])
+    return np.array([F_v[0], F_a[0]])
+
+
+def closed_loop_matrix(A: np.ndarray, B: np.ndarray, k_roll, k_pitch, insertion_kp: float = INSERTION_KP) -> np.ndarray:
+    """Continuous closed-loop state matrix (7, 7) of the coupled 3-joint model under the firmware
+    laws: roll ``[Kp, Kd]``, pitch ``[Kp, Kd, Ki]``, insertion P (counts/m). State: the model's
+    ``[q; v]`` (SI) and the pitch error integral ``z`` (rad s, ``zdot = r - y``, here ``r = 0``)."""
+    K = np.zeros((3, 7))                 # u = -K [x; z], x in SI
+    K[ROLL, [0, 3]] = [-k_roll[0] * DEG, k_roll[1] * DEG]
+    K[PITCH, [1, 4, 6]] = [-k_pitch[0] * DEG, k_pitch[1] * DEG, k_pitch[2] * DEG]
+    K[INSERTION, 2] = insertion_kp
+    A_aug = np.zeros((7, 7))
+    A_aug[:6, :6] = A
+    A_aug[6, 1] = -1.0                   # zdot = e = -(y - r)
+    B_aug = np.vstack([B, np.zeros((1, 3))])
+    return A_aug - B_aug @ K
+
+
+@dataclass(frozen=True)
+class GainSchedule:
+    """Gain tables indexed ``[pitch][roll]`` like the firmware's, and the models behind them."""
+
+    roll_deg: np.ndarray     # (nr,) grid, increasing
+    pitch_deg: np.ndarray    # (np,)
+    insertion: float         # m, the insertion the models were taken at
+    k_roll: np.ndarray       # (np, nr, 2)  [Kp, Kd]
+    k_pitch: np.ndarray      # (np, nr, 3)  [Kp, Kd, Ki]
+    u_hold: np.ndarray       # (np, nr, 2)  holding PWM of roll, pitch (gravity feedforward)
+    ff_pitch: np.ndarray     # (np, nr, 2)  [F_v, F_a] of the pitch feedforward
+    A: np.ndarray            # (np, nr, 6, 6) SI
+    B: np.ndarray            # (np, nr, 6, 3)
+    A_cl: np.ndarray         # (np, nr, 7, 7)
+    weights: Weights = field(default_factory=Weights)
+
+
+def check_grid(values, what: str, limit_deg: float = 30.0) -> np.ndarray:
+    values = np.asarray(values, dtype=float)
+    if values.ndim != 1 or values.size < 2 or not np.all(np.isfinite(values)):
+        raise RcmKinError(f"the {what} grid needs at least 2 finite values (deg)")
+    if np.any(np.diff(values) <= 0):
+        raise RcmKinError(f"the {what} grid must be strictly increasing: {values.tolist()}")
+    if np.any(np.abs(values) > limit_deg + 1e-9):
+        raise RcmKinError(f"the {what} grid leaves the joint range +-{limit_deg:g} deg: {values.tolist()}")
+    return values
+
+
+def parse_grid(text: str) -> tuple[np.ndarray, np.ndarray]:
+    """``thesis`` or ``ROLLS:PITCHES`` with comma-separated degrees, e.g. ``-20,0,20:-15,0,15``."""
+    if text == "thesis":
+        return np.array(THESIS_ROLL_DEG), np.array(THESIS_PITCH_DEG)
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise RcmKinError(f"--grid is 'thesis' or ROLLS:PITCHES in degrees (e.g. -20,0,20:-15,0,15), got '{text}'")
+    try:
+        rolls, pitches = ([float(v) for v in p.split(",")] for p in parts)
+    except ValueError:
+        raise RcmKinError(f"--grid values must be numbers, got '{text}'") from None
+    return check_grid(rolls, "roll"), check_grid(pitches, "pitch")
+
+
+def schedule_gains(model: DrivenDynamics, roll_deg, pitch_deg, insertion: float = 0.08,
+                   weights: Weights | None = None) -> GainSchedule:
+    """Design the gain tables on a roll x pitch grid (degrees) at one insertion (m)."""
+    if model.coulomb:
+        raise RcmKinError("design on the model without Coulomb friction: driven_dynamics(..., coulomb=False)")
+    weights = weights or Weights()
+    roll_deg, pitch_deg = check_grid(roll_deg, "roll"), check_grid(pitch_deg, "pitch")
+    if not 0.0 <= insertion <= 0.16:
+        raise RcmKinError(f"insertion {insertion} m is outside the joint range 0 to 0.16 m")
+    P, R = np.meshgrid(pitch_deg, roll_deg, indexing="ij")
+    Q = np.column_stack([R.ravel() / DEG, P.ravel() / DEG, np.full(R.size, insertion)])
+    grid = linearize_grid(model, Q)
+    shape = P.shape
+    k_roll = np.array([roll_gains(a, b, weights) for a, b in zip(grid.A, grid.B)])
+    k_pitch = np.array([pitch_gains(a, b, weights) for a, b in zip(grid.A, grid.B)])
+    ff = np.array([pitch_feedforward(a, b) for a, b in zip(grid.A, grid.B)])
+    A_cl = np.array([closed_loop_matrix(a, b, kr, kp) for a, b, kr, kp in zip(grid.A, grid.B, k_roll, k_pitch)])
+    return GainSchedule(roll_deg, pitch_deg, float(insertion),
+                        k_roll.reshape(*shape, 2), k_pitch.reshape(*shape, 3), grid.u0[:, :2].reshape(*shape, 2),
+                        ff.reshape(*shape, 2), grid.A.reshape(*shape, 6, 6), grid.B.reshape(*shape, 6, 3),
+                        A_cl.reshape(*shape, 7, 7), weights)
+
+
+def interpolate(x: float, x0: float, x1: float, y0, y1):
+    """The firmware's ``interpolate``: ``y0 + (y1 - y0) * ((x - x0) / (x1 - x0))``."""
+    return y0 + (y1 - y0) * ((x - x0) / (x1 - x0))
+
+
+def _cell(grid: np.ndarray, x: float) -> tuple[int, float]:
+    """Cell index and the clamped coordinate: never extrapolate beyond the grid."""
+    x = min(max(x, grid[0]), grid[-1])
+    i = int(np.searchsorted(grid, x, side="right")) - 1
+    return min(max(i, 0), len(grid) - 2), x
+
+
+def bilinear(roll_grid: np.ndarray, pitch_grid: np.ndarray, table: np.ndarray, roll_deg: float, pitch_deg: float):
+    """Bilinear interpolation of ``table[pitch][roll]`` (trailing dims are values), clamped to
+    the grid: along roll on the two pitch rows, then along pitch, as ``gain_schedule.h`` does."""
+    i, r = _cell(roll_grid, float(roll_deg))
+    j, p = _cell(pitch_grid, float(pitch_deg))
+    low = interpolate(r, roll_grid[i], roll_grid[i + 1], table[j, i], table[j, i + 1])
+    high = interpolate(r, roll_grid[i], roll_grid[i + 1], table[j + 1, i], table[j + 1, i + 1])
+    return interpolate(p, pitch_grid[j], pitch_grid[j + 1], low, high)
+
+
+def scheduled_gains(schedule: GainSchedule, roll_deg: float, pitch_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(k_roll, k_pitch)`` the firmware uses at a pose (degrees)."""
+    if not (np.isfinite(roll_deg) and np.isfinite(pitch_deg)):
+        raise RcmKinError("the scheduling angles must be finite (deg)")
+    return (bilinear(schedule.roll_deg, schedule.pitch_deg, schedule.k_roll, roll_deg, pitch_deg),
+            bilinear(schedule.roll_deg, schedule.pitch_deg, schedule.k_pitch, roll_deg, pitch_deg))
