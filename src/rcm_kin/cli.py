@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 
 import numpy as np
@@ -24,7 +25,11 @@ EPILOG_REPORT = "example: rcm-kin report --out report && open report/index.html"
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with the project's one-line error format."""
+    """argparse with the project's one-line error format, reading ``-1e-06`` as a number."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
     def error(self, message: str):  # noqa: D102 - argparse API
         self.exit(2, f"error: {message} (see: {self.prog} --help)\n")
