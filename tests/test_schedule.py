@@ -207,3 +207,22 @@ def test_cli_schedule_writes_the_contract_files(tmp_path, capsys):
     assert len((out / "gains.csv").read_text().splitlines()) == 10
     assert main(["schedule", "mtm", "--out", str(out)]) == 2
     assert "PSM" in capsys.readouterr().err
+
+
+def test_thesis_gains_on_the_thesis_roll_model_by_python_control():
+    """The closed-loop poles of the firmware law on G(s), against python-control's feedback."""
+    import control
+    from rcm_kin.control.thesis_comparison import THESIS_K_ROLL, THESIS_ROLL_TF, thesis_roll_closed_loop
+    kp, kd = THESIS_K_ROLL[1, 1]
+    # u = -(Kp (r - y) + Kd ydot) = (Kp - Kd s) y - Kp r: positive feedback through Kp - Kd s
+    loop = control.feedback(control.tf(*THESIS_ROLL_TF), control.tf([-kd, kp], [1.0]), sign=1)
+    np.testing.assert_allclose(np.sort_complex(thesis_roll_closed_loop(kp, kd)), np.sort_complex(loop.poles()),
+                               rtol=1e-9)
+
+
+def test_thesis_tables_beside_the_model(design):
+    from rcm_kin.control.thesis_comparison import compare_with_thesis
+    c = compare_with_thesis(design, points=5)
+    assert c.ours.stable
+    # the thesis's Kd has the accelerating sign on the model, so its loops are unstable there
+    assert not c.thesis.stable and c.thesis_damping_flipped.stable

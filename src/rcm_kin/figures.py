@@ -66,3 +66,22 @@ def insertion_curves(gmap, path: str | Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return Path(path)
+
+
+def stability_maps(surveys: dict, path: str | Path) -> Path:
+    """Per survey (title -> StabilitySurvey): the 400 Hz firmware loop's slowest decay rate
+    ``-ln(spectral radius) / T`` (1/s; negative = unstable) over roll x pitch."""
+    from rcm_kin.control.stability import FIRMWARE_PERIOD
+
+    fig, axes = plt.subplots(1, len(surveys), figsize=(5 * len(surveys), 4), constrained_layout=True, squeeze=False)
+    for ax, (title, s) in zip(axes[0], surveys.items()):
+        decay = -np.log(s.spectral_radius) / FIRMWARE_PERIOD
+        extent = [s.roll_deg[0], s.roll_deg[-1], s.pitch_deg[0], s.pitch_deg[-1]]
+        im = ax.imshow(decay, origin="lower", extent=extent, aspect="auto", cmap="RdYlGn",
+                       vmin=-np.abs(decay).max(), vmax=np.abs(decay).max())
+        ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=title)
+        fig.colorbar(im, ax=ax, label="slowest decay rate (1/s)")
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
