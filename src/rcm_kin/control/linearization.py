@@ -16,7 +16,6 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 import pinocchio as pin
-from tqdm import tqdm
 
 from rcm_kin.closure.reduced import relation_jacobian, tree_configuration
 from rcm_kin.dynamics.drive import DRIVEN
@@ -69,14 +68,13 @@ class LinearizationGrid:
     B: np.ndarray    # (N, 6, 3)
 
 
-def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, progress: bool = False) -> LinearizationGrid:
+def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096) -> LinearizationGrid:
     """Linear models at (N, 3) poses with one mapped CasADi call per chunk of poses."""
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     if Q.ndim != 2 or Q.shape[1] != 3 or not np.all(np.isfinite(Q)):
         raise RcmKinError(f"poses must be finite rows of 3 values ({', '.join(DRIVEN)}), got shape {Q.shape}")
     u0, A, B = [], [], []
-    starts = range(0, len(Q), chunk)
-    for i in tqdm(starts, desc="linearise", unit="chunk", disable=not progress or len(starts) < 2):
+    for i in range(0, len(Q), chunk):
         q = Q[i:i + chunk]
         gravity, jacobians = _mapped(model, len(q))
         u = np.array(gravity(q.T)).T / model.drive.input_gain

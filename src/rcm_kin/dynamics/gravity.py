@@ -21,6 +21,7 @@ from tqdm import tqdm
 from rcm_kin.closure import constrained
 from rcm_kin.closure.reduced import reduced_gravity, relation_jacobian, tree_configuration
 from rcm_kin.errors import RcmKinError
+from rcm_kin.symbolic.tree import joint_axis
 
 
 def gravity_torque(robot, q, method: str = "reduced") -> np.ndarray:
@@ -48,17 +49,6 @@ class TreeKinematicsBatch:
     origin: list[np.ndarray]     # per joint (3, N)
     axis: list[np.ndarray]       # per joint (3, N): unit joint axis in the base frame
     prismatic: np.ndarray    # (njoints,) bool
-
-
-def _local_axis(joint) -> tuple[np.ndarray, bool]:
-    name = joint.shortname()
-    if name in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
-        axis = np.asarray(joint.extract().axis, dtype=float)
-    elif name[-2:] in ("RX", "RY", "RZ", "PX", "PY", "PZ") and name.startswith("JointModel"):
-        axis = np.eye(3)["XYZ".index(name[-1])]
-    else:
-        raise RcmKinError(f"joint type {name} is not supported by the batched gravity (1-DOF joints only)")
-    return axis, "Prismatic" in name or name[-2] == "P"
 
 
 def _times_constant(A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -107,7 +97,7 @@ def tree_kinematics_batch(robot, Q: np.ndarray) -> TreeKinematicsBatch:
     prismatic = np.zeros(model.njoints, dtype=bool)
     for j in range(1, model.njoints):
         joint, parent, placement = model.joints[j], model.parents[j], model.jointPlacements[j]
-        axis, prismatic[j] = _local_axis(joint)
+        axis, prismatic[j] = joint_axis(joint)
         qj = Qt[:, joint.idx_q]
         R_fixed = _times_constant(R[parent], placement.rotation)     # joint frame before its motion
         origin = p[parent] + _apply(R[parent], placement.translation)
