@@ -138,8 +138,6 @@ def schedule_gains(model: DrivenDynamics, roll_deg, pitch_deg, insertion: float 
         raise RcmKinError("design on the model without Coulomb friction: driven_dynamics(..., coulomb=False)")
     weights = weights or Weights()
     roll_deg, pitch_deg = check_grid(roll_deg, "roll"), check_grid(pitch_deg, "pitch")
-    if not 0.0 <= insertion <= 0.16:
-        raise RcmKinError(f"insertion {insertion} m is outside the joint range 0 to 0.16 m")
     P, R = np.meshgrid(pitch_deg, roll_deg, indexing="ij")
     Q = np.column_stack([R.ravel() / DEG, P.ravel() / DEG, np.full(R.size, insertion)])
     grid = linearize_grid(model, Q)

@@ -47,7 +47,17 @@ def equilibrium(model: DrivenDynamics, q) -> tuple[np.ndarray, np.ndarray]:
     q = np.asarray(q, dtype=float).ravel()
     if q.shape != (3,) or not np.all(np.isfinite(q)):
         raise RcmKinError(f"an equilibrium pose is 3 finite values ({', '.join(DRIVEN)})")
+    check_in_range(model, q[None])
     return np.r_[q, np.zeros(3)], holding_pwm(model, q)
+
+
+def check_in_range(model: DrivenDynamics, Q: np.ndarray, tol: float = 1e-9) -> None:
+    """Refuse poses (N, 3) outside the driven joints' limits: the model means nothing there."""
+    outside = np.any((Q < model.lower - tol) | (Q > model.upper + tol), axis=0)
+    if np.any(outside):
+        limits = ", ".join(f"{j} {lo:.4g} to {hi:.4g}" for j, lo, hi, o in
+                           zip(DRIVEN, model.lower, model.upper, outside) if o)
+        raise RcmKinError(f"pose outside the joint range ({limits}; rad, m)")
 
 
 def linearize(model: DrivenDynamics, q) -> Linearization:
@@ -73,6 +83,7 @@ def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096) -> Linearization
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     if Q.ndim != 2 or Q.shape[1] != 3 or not np.all(np.isfinite(Q)):
         raise RcmKinError(f"poses must be finite rows of 3 values ({', '.join(DRIVEN)}), got shape {Q.shape}")
+    check_in_range(model, Q)
     u0, A, B = [], [], []
     for i in range(0, len(Q), chunk):
         q = Q[i:i + chunk]

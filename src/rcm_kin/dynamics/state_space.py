@@ -61,6 +61,8 @@ class DrivenDynamics:
 
     joints: tuple[str, ...]        # ("roll", "pitch", "insertion")
     q_fixed: np.ndarray            # the robot's actuated q; driven entries are overwritten
+    lower: np.ndarray              # (3,) joint limits of the driven joints (rad, rad, m)
+    upper: np.ndarray
     drive: DriveConstants
     coulomb: bool                  # whether the smoothed Coulomb term is in ``forward``
     forward: ca.Function           # (x, u) -> xdot
@@ -115,7 +117,8 @@ def driven_dynamics(robot, params: DriveParameters | None = None, q_fixed=None,
     x = ca.vertcat(q, v)
     xdot = ca.vertcat(v, ca.solve(M, tau - bias))
     return DrivenDynamics(
-        joints=DRIVEN, q_fixed=q_fixed, drive=drive, coulomb=coulomb,
+        joints=DRIVEN, q_fixed=q_fixed, lower=robot.lower[index], upper=robot.upper[index], drive=drive,
+        coulomb=coulomb,
         forward=ca.Function("forward", [x, u], [xdot], ["x", "u"], ["xdot"]),
         jacobians=ca.Function("jacobians", [x, u], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)],
                               ["x", "u"], ["A", "B"]),
