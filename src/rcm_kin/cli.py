@@ -21,6 +21,10 @@ EPILOG_FK = "example: rcm-kin fk psm 10 -5 0.08 --deg --json   (roll 10 deg, pit
 EPILOG_IK = ("examples: rcm-kin ik psm 0.01 0.02 -0.06 --json   (shaft tip at x y z in m, base frame)\n"
              "          rcm-kin ik psm 0.01 0.02 -0.07 --rpy 180 0 0 --deg   (tool_tip pose, numeric)\n"
              "          rcm-kin ik mtm 0.26 0.02 -0.2 --json   (MTM wrist centre)")
+EPILOG_SIMULATE = ("examples: rcm-kin simulate psm --experiment sine --controller scheduled --json\n"
+                   "          rcm-kin simulate psm --experiment target --controller p --plot figures   "
+                   "(bundled trajectory)\n"
+                   "          rcm-kin simulate psm --experiment target --trajectory mtm_target_trajectory.csv")
 EPILOG_REPORT = "example: rcm-kin report --out report && open report/index.html"
 
 
@@ -266,6 +270,35 @@ def cmd_schedule(args) -> None:
     _emit(args, payload, text)
 
 
+def cmd_simulate(args) -> None:
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.simulation.experiments import run_experiment
+    from rcm_kin.simulation.firmware import FirmwareSettings
+    from rcm_kin.simulation.loop import tracking_metrics
+
+    if args.robot != "psm":
+        raise RcmKinError(f"the tracking experiments run on the PSM's driven joints, not '{args.robot}'")
+    if not (np.isfinite(args.rate) and args.rate > 0):
+        raise RcmKinError(f"--rate is a positive frequency in Hz, got {args.rate}")
+    limits = _floats(args.pwm_limit, "--pwm-limit") if args.pwm_limit else None
+    settings = FirmwareSettings(period=1.0 / args.rate, **({"pwm_limit": limits} if limits is not None else {}),
+                                noise_counts=args.noise_counts)
+    result = run_experiment(args.experiment, args.controller, args.duration, load_drive_parameters(args.params),
+                            settings, args.trajectory, seed=args.seed, progress=sys.stderr.isatty())
+    metrics = tracking_metrics(result)
+    payload = {axis: vars(m) for axis, m in metrics.items()}
+    lines = [f"{args.experiment} with {args.controller}, {result.time[-1]:.2f} s at {args.rate:g} Hz:"] + [
+        f"{axis:5}  max {m.max_error_deg:.3f}  mean {m.mean_error_deg:.3f}  RMS {m.rms_error_deg:.3f} deg;  "
+        f"PWM RMS {m.rms_pwm:.1f}, saturated {m.saturation_s:.3f} s" for axis, m in metrics.items()]
+    if args.plot:
+        from rcm_kin.figures import tracking_figure
+
+        path = tracking_figure(result, output_folder(args.plot) / f"{args.experiment}_{args.controller}.png",
+                               title=f"{args.experiment}, {args.controller}:")
+        lines.append(f"wrote {path}")
+    _emit(args, payload, "\n".join(lines))
+
+
 def cmd_report(args) -> None:
     from rcm_kin.report import write_report
 
@@ -390,6 +423,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output folder (created)")
     p.add_argument("--json", action="store_true", help='{"files", "stable", weakest point}')
     p.set_defaults(func=cmd_schedule)
+
+    p = sub.add_parser("simulate", help="closed-loop 400 Hz simulation of the thesis tracking experiments",
+                       epilog=EPILOG_SIMULATE, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("robot", help="psm")
+    p.add_argument("--experiment", required=True, choices=("sine", "step", "target"),
+                   help="sine: roll 20 deg / pitch 15 deg, 3 s period; step: 10 deg at 0.5 s; "
+                        "target: MTM trajectory through teleoperation and IK")
+    p.add_argument("--controller", required=True, choices=("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity"),
+                   help="p: Kp 35/60 PWM/deg; pid: thesis Table 3.4; lqr-fixed: model LQR/LQI at (0,0); "
+                        "scheduled: gain-scheduled LQR/LQI + feedforward; scheduled-gravity: plus holding PWM")
+    p.add_argument("--duration", type=float, help="simulated seconds (default: sine 6, step 3, target: recording)")
+    p.add_argument("--trajectory", help="MTM recording CSV (unix_time,x,y,z in m) for --experiment target "
+                                        "(default: the bundled figure-eight)")
+    p.add_argument("--rate", type=float, default=400.0, help="controller rate in Hz (default 400)")
+    p.add_argument("--pwm-limit", nargs=3, metavar=("ROLL", "PITCH", "INS"),
+                   help="PWM saturation in counts (default 100 150 100)")
+    p.add_argument("--noise-counts", type=float, default=0.0, help="encoder noise std in counts (default 0)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the encoder noise (default 0)")
+    p.add_argument("--params", help="drive parameter TOML (default: the shipped calibrated set)")
+    p.add_argument("--plot", metavar="DIR", help="write reference/measured/error plots (PNG) into DIR")
+    p.add_argument("--json", action="store_true",
+                   help='{"roll": {"max_error_deg", "mean_error_deg", "rms_error_deg", ...}, "pitch": {...}}')
+    p.set_defaults(func=cmd_simulate)
 
     p = sub.add_parser("report", help="run the main job on the bundled models and write index.html",
                        epilog=EPILOG_REPORT)

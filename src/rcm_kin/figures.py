@@ -85,3 +85,41 @@ def stability_maps(surveys: dict, path: str | Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def tracking_figure(result, path: str | Path, title: str = "") -> Path:
+    """Thesis Figs 5.2-5.5 and 5.8-5.9: reference and measured angle per axis (top) and the
+    tracking error (bottom), with the PWM sent on a second axis."""
+    fig, axes = plt.subplots(2, 2, figsize=(11, 6), sharex=True, constrained_layout=True)
+    for i, axis in enumerate(("roll", "pitch")):
+        top, bottom = axes[0, i], axes[1, i]
+        top.plot(result.time, result.reference[:, i], "k--", lw=1.2, label="reference")
+        top.plot(result.time, result.measured[:, i], lw=1.2, label=f"measured ({result.controller})")
+        top.set(ylabel=f"{axis} (deg)", title=f"{title} {axis}".strip())
+        top.legend(loc="upper right", fontsize=8)
+        bottom.plot(result.time, result.error[:, i], color="tab:red", lw=1.0, label="error")
+        bottom.set(xlabel="time (s)", ylabel="error (deg)")
+        pwm = bottom.twinx()
+        pwm.plot(result.time, result.pwm[:, i], color="tab:gray", lw=0.6, alpha=0.6)
+        pwm.set_ylabel("PWM (counts)", color="tab:gray")
+        for ax in (top, bottom):
+            ax.grid(alpha=0.3)
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def error_comparison_figure(results: list, path: str | Path, title: str = "") -> Path:
+    """Thesis Figs 5.6/5.7 and 5.10/5.11: the tracking error of several controllers per axis."""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 3.6), constrained_layout=True)
+    for i, (ax, axis) in enumerate(zip(axes, ("roll", "pitch"))):
+        for r in results:
+            ax.plot(r.time, r.error[:, i], lw=1.0, label=r.controller)
+        ax.set(xlabel="time (s)", ylabel=f"{axis} error (deg)", title=f"{title} {axis}".strip())
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,145 @@
+"""Controllers of the PSM firmware, one interface: ``command(memory, sample) -> (pwm, memory)``.
+
+A controller is a frozen dataclass of gains; what it remembers between samples (integrals,
+previous errors) is the ``memory`` array it returns and is handed back, so a run is a pure
+function of its inputs. Conventions of the firmware (thesis Ch. 4): roll and pitch in degrees,
+insertion in metres, error ``e = r - y``, PWM with the hardware sign (a positive PWM lowers the
+roll and pitch angles and extends the insertion), so ``u = -(Kp e + ...)`` for roll and pitch.
+The insertion is held by the firmware's P loop (30 PWM/mm) under every controller.
+
+To add a controller: a dataclass with ``name``, ``initial_memory()`` and ``command``, and an
+entry in :func:`make_controller`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rcm_kin.control.gain_schedule import INSERTION_KP, GainSchedule, bilinear, scheduled_gains
+from rcm_kin.errors import RcmKinError
+
+CONTROLLERS = ("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity")
+
+
+@dataclass(frozen=True)
+class Sample:
+    """What the firmware knows at one tick; (roll deg, pitch deg, insertion m) per array."""
+
+    position: np.ndarray                # measured (encoder counts x resolution)
+    velocity: np.ndarray                # firmware estimate, deg/s, deg/s, m/s
+    reference: np.ndarray
+    reference_velocity: np.ndarray
+    reference_acceleration: np.ndarray
+    period: float                       # s
+    pwm_limit: np.ndarray               # counts, for anti-windup
+
+
+def _insertion(sample: Sample) -> float:
+    return INSERTION_KP * (sample.reference[2] - sample.position[2])
+
+
+def _conditional_integral(integral: float, error: float, period: float, law, limit: float) -> tuple[float, float]:
+    """Anti-windup by conditional integration: keep the new integral unless the command is
+    saturated and integrating would push it further into saturation. Returns (u, integral)."""
+    candidate = integral + error * period
+    u = law(candidate)
+    if abs(u) > limit and np.sign(u) == np.sign(law(candidate) - law(integral)):
+        return law(integral), integral
+    return u, candidate
+
+
+@dataclass(frozen=True)
+class PController:
+    """The thesis's baseline: ``u = -Kp e`` (PWM/deg), roll Kp 35, pitch Kp 60."""
+
+    kp: tuple[float, float] = (35.0, 60.0)
+    name: str = "p"
+
+    def initial_memory(self) -> np.ndarray:
+        return np.zeros(0)
+
+    def command(self, memory, sample: Sample):
+        e = sample.reference[:2] - sample.position[:2]
+        return np.array([-self.kp[0] * e[0], -self.kp[1] * e[1], _insertion(sample)]), memory
+
+
+@dataclass(frozen=True)
+class PIDController:
+    """Thesis Table 3.4 (Ziegler-Nichols): ``u = -(Kp e + Ki E + Kd de/dt)``, ``E`` the error
+    integral (deg s) with conditional anti-windup, ``de/dt`` the backward difference of the
+    error (0 on the first sample). Gains per (roll, pitch): PWM/deg, PWM/(deg s), PWM/(deg/s)."""
+
+    kp: tuple[float, float] = (35.0, 60.0)
+    ki: tuple[float, float] = (50.0, 110.0)
+    kd: tuple[float, float] = (5.0, 15.0)
+    name: str = "pid"
+
+    def initial_memory(self) -> np.ndarray:
+        return np.array([0.0, 0.0, np.nan, np.nan])      # integrals, previous errors
+
+    def command(self, memory, sample: Sample):
+        e = sample.reference[:2] - sample.position[:2]
+        de = np.where(np.isnan(memory[2:]), 0.0, (e - memory[2:]) / sample.period)
+        u, integral = np.zeros(3), memory[:2].copy()
+        for i in range(2):
+            law = lambda E, i=i: -(self.kp[i] * e[i] + self.ki[i] * E + self.kd[i] * de[i])  # noqa: E731
+            u[i], integral[i] = _conditional_integral(memory[i], e[i], sample.period, law, sample.pwm_limit[i])
+        u[2] = _insertion(sample)
+        return u, np.r_[integral, e]
+
+
+@dataclass(frozen=True)
+class StateFeedbackController:
+    """The thesis's final structure with model-based gains: roll LQR ``u = -(Kp e + Kd w)``,
+    pitch LQI ``u = -(Kp e + Kd w + Ki E) + F_v rdot + F_a rddot`` (anti-windup as the PID).
+
+    ``w`` is the velocity error ``v - rdot`` (the LQR tracking law ``u = -K (x - x_ref)``) when
+    ``track_velocity``; the thesis firmware (Listing 4.15) damps the measured ``v`` itself, which
+    lags a moving reference by about ``Kd rdot / Kp`` degrees (set ``track_velocity=False``).
+
+    ``scheduled``: gains interpolated bilinearly at the measured pose, as ``gain_schedule.h``
+    does; otherwise the gains (and feedforward) at roll = pitch = 0. ``gravity``: adds the
+    model's holding PWM at the reference pose (the schedule's ``u_hold`` table, interpolated)."""
+
+    schedule: GainSchedule
+    scheduled: bool = True
+    gravity: bool = False
+    track_velocity: bool = True
+    name: str = "scheduled"
+
+    def initial_memory(self) -> np.ndarray:
+        return np.zeros(1)                                  # pitch error integral, deg s
+
+    def command(self, memory, sample: Sample):
+        s = self.schedule
+        at = sample.position[:2] if self.scheduled else np.zeros(2)
+        k_roll, k_pitch = scheduled_gains(s, at[0], at[1])
+        ff = bilinear(s.roll_deg, s.pitch_deg, s.ff_pitch, at[0], at[1])
+        e = sample.reference[:2] - sample.position[:2]
+        v = sample.velocity[:2] - (sample.reference_velocity[:2] if self.track_velocity else 0.0)
+        hold = (bilinear(s.roll_deg, s.pitch_deg, s.u_hold, sample.reference[0], sample.reference[1])
+                if self.gravity else np.zeros(2))
+        u = np.zeros(3)
+        u[0] = -(k_roll[0] * e[0] + k_roll[1] * v[0]) + hold[0]
+        feedforward = ff[0] * sample.reference_velocity[1] + ff[1] * sample.reference_acceleration[1] + hold[1]
+        law = lambda E: -(k_pitch[0] * e[1] + k_pitch[1] * v[1] + k_pitch[2] * E) + feedforward  # noqa: E731
+        u[1], integral = _conditional_integral(memory[0], e[1], sample.period, law, sample.pwm_limit[1])
+        u[2] = _insertion(sample)
+        return u, np.array([integral])
+
+
+def make_controller(name: str, schedule: GainSchedule | None = None):
+    """The controller called ``name`` (one of :data:`CONTROLLERS`); the model-based ones need the
+    gain schedule (:func:`rcm_kin.control.gain_schedule.schedule_gains`)."""
+    if name == "p":
+        return PController()
+    if name == "pid":
+        return PIDController()
+    if name not in CONTROLLERS:
+        raise RcmKinError(f"unknown controller '{name}' (choose from {', '.join(CONTROLLERS)})")
+    if schedule is None:
+        raise RcmKinError(f"the '{name}' controller needs a gain schedule")
+    return StateFeedbackController(schedule, scheduled=name != "lqr-fixed", gravity=name == "scheduled-gravity",
+                                   name=name)

@@ -1,0 +1,69 @@
+"""The thesis's tracking experiments on the PSM model: plant, controller and reference wired.
+
+The plant is the nonlinear driven-joint model with Coulomb friction; the model-based
+controllers use the gain schedule designed on the thesis grid (roll -20/0/20 x pitch
+-15/0/15 deg, insertion 80 mm) on the same model without Coulomb friction, as ``rcm-kin
+schedule`` does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, schedule_gains
+from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
+from rcm_kin.dynamics.state_space import driven_dynamics
+from rcm_kin.errors import RcmKinError
+from rcm_kin.robot import load_robot
+from rcm_kin.simulation.controllers import make_controller
+from rcm_kin.simulation.firmware import FirmwareSettings
+from rcm_kin.simulation.loop import SimulationResult, simulate
+from rcm_kin.simulation.plant import period_map
+from rcm_kin.simulation.references import EXPERIMENTS, Reference, sine_reference, step_reference, target_reference
+
+DEFAULT_DURATION = {"sine": 6.0, "step": 3.0, "target": None}   # s; None: the recording's length
+
+
+def experiment_reference(experiment: str, period: float, duration: float | None = None,
+                         trajectory=None) -> Reference:
+    """The reference of ``experiment`` (one of :data:`EXPERIMENTS`) at the controller period."""
+    if experiment not in EXPERIMENTS:
+        raise RcmKinError(f"unknown experiment '{experiment}' (choose from {', '.join(EXPERIMENTS)})")
+    duration = DEFAULT_DURATION[experiment] if duration is None else duration
+    if experiment == "sine":
+        return sine_reference(duration, period)
+    if experiment == "step":
+        return step_reference(duration, period)
+    return target_reference(load_robot("psm"), duration, period, trajectory)
+
+
+_BUILT: dict[str, tuple] = {}     # repr(params, period, substeps) -> (plant, schedule); models take ~1 s
+
+
+def _plant_and_schedule(params: DriveParameters, period: float, substeps: int):
+    key = repr((params, period, substeps))
+    if key not in _BUILT:
+        psm = load_robot("psm")
+        plant = period_map(driven_dynamics(psm, params).forward, period, substeps)
+        schedule = schedule_gains(driven_dynamics(psm, params, coulomb=False), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
+        _BUILT[key] = plant, schedule
+    return _BUILT[key]
+
+
+def psm_plant_and_schedule(params: DriveParameters | None = None, period: float = FirmwareSettings().period,
+                           substeps: int = 4):
+    """``(step(x, u) -> x, GainSchedule)`` of the PSM with ``params`` (default: shipped set)."""
+    plant, schedule = _plant_and_schedule(params or load_drive_parameters(), period, substeps)
+    return (lambda x, u: np.array(plant(x, u)).ravel()), schedule
+
+
+def run_experiment(experiment: str, controller: str, duration: float | None = None,
+                   params: DriveParameters | None = None, settings: FirmwareSettings | None = None,
+                   trajectory=None, schedule: GainSchedule | None = None, seed: int = 0,
+                   progress: bool = False) -> SimulationResult:
+    """Simulate one thesis experiment with one controller (names as in the CLI)."""
+    settings = settings or FirmwareSettings()
+    step, designed = psm_plant_and_schedule(params, settings.period)
+    reference = experiment_reference(experiment, settings.period, duration, trajectory)
+    return simulate(step, make_controller(controller, schedule or designed), reference, settings, seed=seed,
+                    progress=progress)

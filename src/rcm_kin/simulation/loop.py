@@ -1,0 +1,113 @@
+"""The sampled closed loop: encoder -> velocity estimate -> controller -> PWM (held) -> plant.
+
+At tick ``k`` (time ``k T``) the firmware reads the encoders, estimates the velocities, runs
+the controller and sends the PWM, which the plant integrates over ``[k T, (k + 1) T)``. Before
+``t = 0`` the loop holds the reference's first pose for ``settle`` s, so every experiment starts
+from the pose the controller holds (with its steady error), as the robot's did.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from tqdm import tqdm
+
+from rcm_kin.errors import RcmKinError
+from rcm_kin.simulation.firmware import FirmwareSettings, encoder_reading, sent_pwm, velocity_estimate
+from rcm_kin.simulation.controllers import Sample
+from rcm_kin.simulation.references import Reference
+
+DEG = 180.0 / np.pi
+AXES = ("roll", "pitch")
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """A run from t = 0 (the settling phase is not kept). (roll deg, pitch deg, insertion m)."""
+
+    controller: str
+    time: np.ndarray            # (N,) s
+    reference: np.ndarray       # (N, 3)
+    measured: np.ndarray        # (N, 3) what the firmware read (encoder counts)
+    position: np.ndarray        # (N, 3) true
+    command: np.ndarray         # (N, 3) controller output before saturation, counts
+    pwm: np.ndarray             # (N, 3) sent to the drivers, counts
+    settings: FirmwareSettings
+
+    @property
+    def error(self) -> np.ndarray:
+        """``reference - measured`` (N, 3), as the thesis logged it."""
+        return self.reference - self.measured
+
+
+def firmware_units(q: np.ndarray) -> np.ndarray:
+    """(rad, rad, m) -> (deg, deg, m)."""
+    return np.array([q[0] * DEG, q[1] * DEG, q[2]])
+
+
+def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller, reference: Reference,
+             settings: FirmwareSettings | None = None, seed: int = 0, settle: float = 1.0,
+             x0: np.ndarray | None = None, progress: bool = False) -> SimulationResult:
+    """Run ``controller`` on the plant ``step(x, u) -> x`` (one period, ``x = [q; v]`` SI with the
+    driven joints first) along ``reference``. ``x0`` defaults to rest at the first reference
+    pose. Deterministic for a given ``seed`` (which only drives the optional encoder noise)."""
+    settings = settings or FirmwareSettings()
+    if reference.time.size < 2 or not np.isclose(reference.time[1] - reference.time[0], settings.period, rtol=1e-9):
+        raise RcmKinError("the reference must be sampled at the controller period")
+    if not (np.isfinite(settle) and settle >= 0):
+        raise RcmKinError(f"the settling time must be >= 0 s, got {settle}")
+    rng = np.random.default_rng(seed)
+    n_settle, n = int(round(settle / settings.period)), reference.time.size
+    x = np.r_[reference.position[0], np.zeros(3)] if x0 is None else np.asarray(x0, dtype=float).copy()
+    ref_fw = np.array([firmware_units(p) for p in reference.position])
+    vel_fw = np.array([firmware_units(p) for p in reference.velocity])
+    acc_fw = np.array([firmware_units(p) for p in reference.acceleration])
+    zero = np.zeros(3)
+    previous = encoder_reading(settings, firmware_units(x[:3]), rng)
+    filtered = np.zeros(3)
+    memory = controller.initial_memory()
+    log = {key: np.empty((n, 3)) for key in ("measured", "position", "command", "pwm")}
+    for k in tqdm(range(-n_settle, n), desc=f"simulate {controller.name}", unit="tick", disable=not progress,
+                  leave=False):
+        i = max(k, 0)
+        moving = k >= 0
+        true = firmware_units(x[:3])
+        measured = encoder_reading(settings, true, rng)
+        filtered = velocity_estimate(settings, measured, previous, filtered)
+        sample = Sample(measured, filtered, ref_fw[i], vel_fw[i] if moving else zero,
+                        acc_fw[i] if moving else zero, settings.period, settings.pwm_limit)
+        command, memory = controller.command(memory, sample)
+        u = sent_pwm(settings, command)
+        if moving:
+            for key, value in (("measured", measured), ("position", true), ("command", command), ("pwm", u)):
+                log[key][k] = value
+        x = step(x, u)
+        if not np.all(np.isfinite(x)):
+            raise RcmKinError(f"the simulation diverged at t = {k * settings.period:.3f} s ({controller.name})")
+        previous = measured
+    return SimulationResult(controller.name, reference.time, ref_fw, log["measured"], log["position"],
+                            log["command"], log["pwm"], settings)
+
+
+@dataclass(frozen=True)
+class AxisMetrics:
+    max_error_deg: float
+    mean_error_deg: float       # mean absolute error
+    rms_error_deg: float
+    rms_pwm: float              # control effort, counts
+    mean_abs_pwm: float
+    saturation_s: float         # time with the command at or beyond the PWM limit
+
+
+def tracking_metrics(result: SimulationResult) -> dict[str, AxisMetrics]:
+    """Per axis (roll, pitch): error statistics of ``reference - measured`` and the effort."""
+    out = {}
+    for i, axis in enumerate(AXES):
+        e, u = result.error[:, i], result.pwm[:, i]
+        saturated = np.abs(result.command[:, i]) >= result.settings.pwm_limit[i]
+        out[axis] = AxisMetrics(float(np.max(np.abs(e))), float(np.mean(np.abs(e))), float(np.sqrt(np.mean(e**2))),
+                                float(np.sqrt(np.mean(u**2))), float(np.mean(np.abs(u))),
+                                float(np.count_nonzero(saturated) * result.settings.period))
+    return out
