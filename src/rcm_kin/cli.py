@@ -25,6 +25,10 @@ EPILOG_SIMULATE = ("examples: rcm-kin simulate psm --experiment sine --controlle
                    "          rcm-kin simulate psm --experiment target --controller p --plot figures   "
                    "(bundled trajectory)\n"
                    "          rcm-kin simulate psm --experiment target --trajectory mtm_target_trajectory.csv")
+EPILOG_SYSID = ("examples: rcm-kin sysid roll_step.csv --joint roll --json   (2nd-order fit of the step)\n"
+                "          rcm-kin sysid prbs_roll_0_pitch_0.csv --joint pitch --order 4\n"
+                "          rcm-kin sysid psm-sysid/roll-step --joint roll --out table   "
+                "(every pose of a folder, beside the physics)")
 EPILOG_REPORT = "example: rcm-kin report --out report && open report/index.html"
 
 
@@ -299,6 +303,57 @@ def cmd_simulate(args) -> None:
     _emit(args, payload, "\n".join(lines))
 
 
+def _polynomial(coefficients) -> str:
+    """``[a, b, c]`` (descending powers) as ``a s^2 + b s + c``."""
+    n = len(coefficients) - 1
+    text = ""
+    for k, c in enumerate(coefficients):
+        power = f" s^{n - k}" if n - k > 1 else " s" if n - k == 1 else ""
+        sign = "-" if c < 0 else "+"
+        text += (f"{'-' if c < 0 else ''}{abs(c):.5g}" if k == 0 else f" {sign} {abs(c):.5g}") + power
+    return text
+
+
+def cmd_sysid(args) -> None:
+    from pathlib import Path
+
+    from rcm_kin.identification.pose_models import identify_folder, identify_log, pose_table_rows, write_pose_table
+
+    model = _driven_model(argparse.Namespace(robot="psm", params=args.params), coulomb=False)
+    options = dict(method=args.method, order=args.order, zeros=args.zeros, samples=args.samples,
+                   segment=args.segment)
+    if args.samples < 50:
+        raise RcmKinError("--samples needs at least 50 samples after the step")
+    if Path(args.log).is_dir():
+        models = identify_folder(args.log, args.joint, model, **options)
+        rows = pose_table_rows(models)
+        payload = {"models": rows}
+        lines = [f"{r['file']:46} fit {r['fit_percent']:6.2f} %  DC {r['dc_gain']:+.4f} deg/PWM  poles {r['poles']}"
+                 + (f"   physics DC {r['physics_dc_gain']:+.4f}, poles {r['physics_poles']}" if "physics_poles" in r
+                    else "") for r in rows]
+        if args.out:
+            path = write_pose_table(models, output_folder(args.out) / f"{args.joint}_pose_models.csv")
+            payload["written"] = str(path)
+            lines.append(f"wrote {path}")
+        _emit(args, payload, "\n".join(lines))
+        return
+    pose = tuple(_floats(args.pose, "--pose")) if args.pose else None
+    result = identify_log(args.log, args.joint, model=model, pose_deg=pose, **options)
+    fit = result.fit
+    payload = fit.as_dict()
+    if result.physics is not None:
+        payload["physics"] = {"pose_deg": list(result.pose_deg), "dc_gain": result.physics.dc_gain,
+                              "poles": [[p.real, p.imag] for p in result.physics.poles]}
+    np.set_printoptions(precision=5, suppress=True, linewidth=120)
+    lines = [f"{args.joint}: G(s) = ({_polynomial(fit.num)}) / ({_polynomial(fit.den)})  (deg per PWM count)",
+             f"fit {fit.fit_percent:.2f} % (NRMSE), DC gain {fit.dc_gain:+.4f} deg/PWM, poles {fit.poles}",
+             f"operating point: PWM {result.record.u0:.2f}, angle {result.record.y0:.3f} deg"]
+    if result.physics is not None:
+        lines.append(f"physics at roll {result.pose_deg[0]:g}, pitch {result.pose_deg[1]:g} deg: DC gain "
+                     f"{result.physics.dc_gain:+.4f} deg/PWM, poles {result.physics.poles}")
+    _emit(args, payload, "\n".join(lines))
+
+
 def cmd_report(args) -> None:
     from rcm_kin.report import write_report
 
@@ -446,6 +501,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true",
                    help='{"roll": {"max_error_deg", "mean_error_deg", "rms_error_deg", ...}, "pitch": {...}}')
     p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("sysid", help="transfer-function identification from telemetry logs (step or PRBS)",
+                       epilog=EPILOG_SYSID, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("log", metavar="LOG", help="telemetry CSV (position = measured deg, velocity = PWM), or a "
+                                             "folder of logs named ..._roll_R_pitch_P.csv")
+    p.add_argument("--joint", required=True, choices=("roll", "pitch"))
+    p.add_argument("--method", choices=("step", "prbs"),
+                   help="step: trimmed open-loop step; prbs: whole record about its means (default: roll step, "
+                        "pitch prbs)")
+    p.add_argument("--order", type=int, help="number of poles (default 2 for step, 3 for prbs)")
+    p.add_argument("--zeros", type=int, help="number of zeros (default order - 1)")
+    p.add_argument("--samples", type=int, default=1000, help="step: samples kept from the step (default 1000)")
+    p.add_argument("--segment", type=int,
+                   help="prbs: samples per segment simulated from its own initial state (default 500)")
+    p.add_argument("--pose", nargs=2, metavar=("ROLL", "PITCH"),
+                   help="pose in deg for the physics comparison (default: from the file name)")
+    p.add_argument("--params", help="drive parameter TOML of the physics model (default: the shipped set)")
+    p.add_argument("--out", help="folder: write the per-pose table (CSV) when LOG is a folder")
+    p.add_argument("--json", action="store_true",
+                   help='{"num", "den", "fit_percent", "A", "B", "C", "D", ...}; a folder gives {"models": [...]}')
+    p.set_defaults(func=cmd_sysid)
 
     p = sub.add_parser("report", help="run the main job on the bundled models and write index.html",
                        epilog=EPILOG_REPORT)

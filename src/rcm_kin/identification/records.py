@@ -1,0 +1,85 @@
+"""Identification records from telemetry logs: uniform resampling, the thesis's step trimming,
+operating points from file names, and PRBS inputs for new experiments."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rcm_kin.errors import RcmKinError
+from rcm_kin.telemetry import TelemetryLog, step_index
+
+METHODS = ("step", "prbs")
+
+
+@dataclass(frozen=True)
+class Record:
+    """A uniformly sampled input/output record of one joint: deviations from ``u0``, ``y0``."""
+
+    joint: str
+    period: float          # s
+    u: np.ndarray          # PWM counts (deviation from u0)
+    y: np.ndarray          # deg (deviation from y0)
+    u0: float              # PWM counts at the operating point
+    y0: float              # deg
+
+
+def resample(log: TelemetryLog, joint: str, period: float | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(u, y, period)`` on a uniform grid: the PWM held (previous sample, as the driver holds it),
+    the angle linearly interpolated. ``period`` defaults to the median sample interval."""
+    log.require(joint)
+    t = log.time
+    keep = np.r_[True, np.diff(t) > 0]
+    t, u, y = t[keep], log.pwm[joint][keep], log.position[joint][keep]
+    period = float(np.median(np.diff(t))) if period is None else period
+    if t.size < 10 or not period > 0:
+        raise RcmKinError(f"{log.path.name}: too few time-stamped samples to identify from")
+    grid = np.arange(0.0, t[-1], period)
+    held = u[np.clip(np.searchsorted(t, grid, side="right") - 1, 0, t.size - 1)]
+    return held, np.interp(grid, t, y), period
+
+
+def step_record(log: TelemetryLog, joint: str, samples: int = 1000, period: float | None = None) -> Record:
+    """The thesis's trimming: from the sample before the step (first ``|diff(u)| > 0.1``) for
+    ``samples`` samples, minus the values there (so the record starts at rest, at the step)."""
+    u, y, period = resample(log, joint, period)
+    start = step_index(u) - 1
+    stop = min(start + samples, u.size)
+    if stop - start < 50:
+        raise RcmKinError(f"{log.path.name}: only {stop - start} samples after the {joint} step")
+    return Record(joint, period, u[start:stop] - u[start], y[start:stop] - y[start], float(u[start]), float(y[start]))
+
+
+def prbs_record(log: TelemetryLog, joint: str, period: float | None = None) -> Record:
+    """The whole record about its means (the closed-loop PRBS experiments hover at a pose)."""
+    u, y, period = resample(log, joint, period)
+    return Record(joint, period, u - u.mean(), y - y.mean(), float(u.mean()), float(y.mean()))
+
+
+def operating_point(path: str | Path) -> tuple[float, float] | None:
+    """``(roll, pitch)`` in degrees from a name like ``..._roll_-15_pitch_m15...``; None if absent."""
+    match = re.search(r"roll_(m?-?\d+(?:\.\d+)?)_pitch_(m?-?\d+(?:\.\d+)?)", Path(path).name)
+    if not match:
+        return None
+    value = lambda s: -float(s[1:]) if s.startswith("m") else float(s)  # noqa: E731
+    return value(match.group(1)), value(match.group(2))
+
+
+def prbs(duration: float, period: float, amplitude: float = 15.0, min_hold: float = 0.005,
+         max_hold: float = 1.0, seed: int = 0) -> np.ndarray:
+    """A random binary sequence ``+-amplitude`` sampled every ``period`` s whose level holds for a
+    uniformly random time in ``[min_hold, max_hold]`` s (the logs': +-15 PWM, 5-1000 ms)."""
+    if not (duration > 0 and period > 0 and 0 < min_hold <= max_hold and amplitude > 0):
+        raise RcmKinError("PRBS: duration, period, amplitude > 0 and 0 < min_hold <= max_hold (s)")
+    rng = np.random.default_rng(seed)
+    n = int(round(duration / period))
+    out = np.empty(n)
+    k, level = 0, rng.choice([-1.0, 1.0])
+    while k < n:
+        hold = max(1, int(round(rng.uniform(min_hold, max_hold) / period)))
+        out[k:k + hold] = level * amplitude
+        k, level = k + hold, -level
+    return out
