@@ -29,6 +29,8 @@ EPILOG_SYSID = ("examples: rcm-kin sysid roll_step.csv --joint roll --json   (2n
                 "          rcm-kin sysid prbs_roll_0_pitch_0.csv --joint pitch --order 4\n"
                 "          rcm-kin sysid psm-sysid/roll-step --joint roll --out table   "
                 "(every pose of a folder, beside the physics)")
+EPILOG_GREYBOX = ("example: rcm-kin greybox psm-sysid/roll-step --joint roll --out roll_fitted.toml\n"
+                  "         rcm-kin simulate psm --experiment sine --controller p --params roll_fitted.toml")
 EPILOG_REPORT = "example: rcm-kin report --out report && open report/index.html"
 
 
@@ -354,6 +356,34 @@ def cmd_sysid(args) -> None:
     _emit(args, payload, "\n".join(lines))
 
 
+def cmd_greybox(args) -> None:
+    from pathlib import Path
+
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.identification.greybox import fit_greybox, step_logs, write_greybox_parameters
+
+    paths = []
+    for item in args.logs:
+        found = sorted(Path(item).glob("*.csv")) if Path(item).is_dir() else [Path(item)]
+        if not found:
+            raise RcmKinError(f"no *.csv logs in {item}")
+        paths += found
+    if args.samples < 50:
+        raise RcmKinError("--samples needs at least 50 samples after the step")
+    fit = fit_greybox(load_drive_parameters(args.params), args.joint, step_logs(paths, args.joint, args.samples))
+    payload = fit.as_dict()
+    lines = [f"{args.joint} grey-box fit on {len(fit.logs)} step logs:"]
+    lines += [f"  {n:16} {b:.6g} -> {a:.6g}" for n, b, a in zip(fit.names, fit.before, fit.after)]
+    lines += ["  fit % per log: starting set -> fitted set (median Coulomb) -> with the log's own Coulomb"]
+    lines += [f"  {name:44} {b:9.1f} -> {a:7.1f} -> {p:6.1f}   (coulomb {c:.3f} N m)" for name, c, b, a, p in
+              zip(fit.logs, fit.coulomb_per_log, fit.fit_before, fit.fit_after, fit.fit_per_log_friction)]
+    if args.out:
+        path = write_greybox_parameters(fit, args.out)
+        payload["written"] = str(path)
+        lines.append(f"wrote {path} (use it with --params)")
+    _emit(args, payload, "\n".join(lines))
+
+
 def cmd_report(args) -> None:
     from rcm_kin.report import write_report
 
@@ -522,6 +552,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true",
                    help='{"num", "den", "fit_percent", "A", "B", "C", "D", ...}; a folder gives {"models": [...]}')
     p.set_defaults(func=cmd_sysid)
+
+    p = sub.add_parser("greybox", help="fit inertia scale, friction to open-loop step logs by simulating the "
+                                       "physics", epilog=EPILOG_GREYBOX,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("logs", nargs="+", metavar="LOG", help="step logs (telemetry CSV) or folders of them")
+    p.add_argument("--joint", required=True, choices=("roll", "pitch"))
+    p.add_argument("--samples", type=int, default=1000, help="samples kept from each step (default 1000)")
+    p.add_argument("--params", help="starting drive parameter TOML (default: the shipped set)")
+    p.add_argument("--out", help="write the fitted parameter set (TOML) to this file")
+    p.add_argument("--json", action="store_true",
+                   help='{"before", "after", "coulomb_per_log", "fit_percent_before", "fit_percent_after", ...}')
+    p.set_defaults(func=cmd_greybox)
 
     p = sub.add_parser("report", help="run the main job on the bundled models and write index.html",
                        epilog=EPILOG_REPORT)

@@ -123,3 +123,30 @@ def error_comparison_figure(results: list, path: str | Path, title: str = "") ->
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def greybox_figure(fit, path: str | Path) -> Path:
+    """Measured step responses beside the physics simulated with the starting and the fitted
+    parameters (and each log's own Coulomb friction), one panel per log."""
+    n = len(fit.logs)
+    cols = min(n, 3)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.2 * rows), constrained_layout=True, squeeze=False)
+    for ax, name, r, before, after, own in zip(axes.flat, fit.logs, fit.responses, fit.fit_before, fit.fit_after,
+                                               fit.fit_per_log_friction):
+        ax.plot(r["time"], r["measured"], "k", lw=1.5, label="measured")
+        ax.plot(r["time"], r["starting"], ":", label=f"starting set ({before:.0f} %)")
+        ax.plot(r["time"], r["fitted"], label=f"fitted set ({after:.0f} %)")
+        ax.plot(r["time"], r["own_coulomb"], "--", label=f"own Coulomb ({own:.0f} %)")
+        ax.set(title=name.replace(".csv", ""), xlabel="time (s)", ylabel=f"{fit.joint} change (deg)")
+        low, high = np.min(r["measured"]), np.max(r["measured"])
+        ax.set_ylim(min(low, 0) - 0.5 * (high - low), high + 1.5 * (high - low))   # the measured scale
+        ax.title.set_fontsize(8)
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+    for ax in axes.flat[n:]:
+        ax.axis("off")
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -40,6 +40,7 @@ class JointDrive:
     viscous: float
     coulomb: float
     coulomb_velocity: float = 0.02   # rad/s (m/s): width of the smoothed Coulomb law tanh(v / width)
+    inertia_scale: float = 1.0       # factor on the joint's diagonal inertia (links + rotor), grey-box
 
     @property
     def pwm_per_torque(self) -> float:
