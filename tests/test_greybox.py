@@ -14,7 +14,7 @@ from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
 from rcm_kin.identification.greybox import fit_greybox, step_logs
 
 DEG = 180.0 / np.pi
-TRUE = {"inertia_scale": 1.3, "viscous": 0.4, "coulomb": 0.6, "coulomb_velocity": 0.01}
+TRUE = {"extra_inertia": 0.12, "viscous": 0.4, "coulomb": 0.6, "coulomb_velocity": 0.01}
 HEADER = ["time", "roll_position", "roll_velocity", "pitch_position", "pitch_velocity"]
 
 
@@ -63,15 +63,14 @@ def test_greybox_cli_writes_a_usable_parameter_file(tmp_path, psm, capsys):
     assert main(["greybox", str(path), "--joint", "roll", "--samples", "300", "--out", str(out), "--json"]) == 0
     payload = json.loads(capsys.readouterr().out)
     assert set(payload["after"]) == set(TRUE) and payload["written"] == str(out)
-    assert load_drive_parameters(out)["roll"].inertia_scale == pytest.approx(payload["after"]["inertia_scale"])
+    assert load_drive_parameters(out)["roll"].extra_inertia == pytest.approx(payload["after"]["extra_inertia"])
     assert main(["simulate", "psm", "--experiment", "step", "--controller", "p", "--duration", "0.5",
                  "--params", str(out), "--json"]) == 0
 
 
-def test_inertia_scale_scales_the_joint_inertia(psm):
-    params = load_drive_parameters()
+def test_extra_inertia_adds_to_the_joint_diagonal(psm):
+    params = with_joint(load_drive_parameters(), "roll", extra_inertia=0.0)
     q = np.array([0.1, -0.2, 0.1])
     M = np.array(driven_dynamics(psm, params).mass_matrix(q))
-    M2 = np.array(driven_dynamics(psm, with_joint(params, "roll", inertia_scale=4.0)).mass_matrix(q))
-    D = np.diag([2.0, 1.0, 1.0])
-    np.testing.assert_allclose(M2, D @ M @ D, rtol=1e-12, atol=1e-15)
+    M2 = np.array(driven_dynamics(psm, with_joint(params, "roll", extra_inertia=0.25)).mass_matrix(q))
+    np.testing.assert_allclose(M2 - M, np.diag([0.25, 0.0, 0.0]), rtol=0, atol=1e-15)

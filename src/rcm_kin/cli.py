@@ -553,7 +553,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='{"num", "den", "fit_percent", "A", "B", "C", "D", ...}; a folder gives {"models": [...]}')
     p.set_defaults(func=cmd_sysid)
 
-    p = sub.add_parser("greybox", help="fit inertia scale, friction to open-loop step logs by simulating the "
+    p = sub.add_parser("greybox", help="fit extra inertia and friction to open-loop step logs by simulating the "
                                        "physics", epilog=EPILOG_GREYBOX,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("logs", nargs="+", metavar="LOG", help="step logs (telemetry CSV) or folders of them")

@@ -40,7 +40,7 @@ class JointDrive:
     viscous: float
     coulomb: float
     coulomb_velocity: float = 0.02   # rad/s (m/s): width of the smoothed Coulomb law tanh(v / width)
-    inertia_scale: float = 1.0       # factor on the joint's diagonal inertia (links + rotor), grey-box
+    extra_inertia: float = 0.0       # kg m^2 (kg) at the joint the CAD lacks (drums, cables): grey-box
 
     @property
     def pwm_per_torque(self) -> float:
@@ -49,8 +49,9 @@ class JointDrive:
 
     @property
     def reflected_inertia(self) -> float:
-        """Rotor inertia seen at the joint (kg m^2, or kg for the insertion)."""
-        return self.rotor_inertia * self.gear_ratio**2
+        """Drive-side inertia at the joint: the rotor's reflected through the transmission plus the
+        identified extra inertia (kg m^2, or kg for the insertion)."""
+        return self.rotor_inertia * self.gear_ratio**2 + self.extra_inertia
 
 
 @dataclass(frozen=True)
@@ -88,6 +89,9 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
         entry = raw.get(joint)
         if not isinstance(entry, dict) or set(required) - set(entry):
             raise RcmKinError(f"{path}: [{joint}] needs {', '.join(required)}")
+        unknown = sorted(set(entry) - set(names))
+        if unknown:
+            raise RcmKinError(f"{path}: [{joint}] has unknown keys {', '.join(unknown)} (known: {', '.join(names)})")
         try:
             joints[joint] = JointDrive(**{n: float(entry[n]) for n in names if n in entry})
         except (TypeError, ValueError):

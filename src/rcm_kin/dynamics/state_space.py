@@ -4,7 +4,7 @@ State ``x = [q; v]`` with ``q = (roll rad, pitch rad, insertion m)`` and ``v`` t
 input ``u`` = PWM counts of the three drivers (hardware sign, not saturated). The instrument
 joints are held at fixed values. The model, on CasADi symbols:
 
-    D (M(q) + diag(N^2 J_rotor)) D a = k_u u - (k_t^2 N^2 / R + b) v - F_c tanh(v / v_c) - c(q, v) - g(q)
+    (M(q) + diag(N^2 J_rotor + J_extra)) a = k_u u - (k_t^2 N^2 / R + b) v - F_c tanh(v / v_c) - c(q, v) - g(q)
 
 - ``M, c, g``: rigid-body dynamics of the closed chain (the parallelogram included), from the
   open tree transcribed into CasADi (:mod:`rcm_kin.symbolic.tree`) and the loop-closure map
@@ -13,8 +13,7 @@ joints are held at fixed values. The model, on CasADi symbols:
 - ``k_u = pwm_sign k_t N V_pwm / R`` (N m per count): the driver's voltage through the
   motor's resistance and torque constant and the transmission ``N``;
 - back-EMF damping ``k_t^2 N^2 / R``, viscous ``b``, smoothed Coulomb ``F_c`` (drive parameters);
-- ``D = diag(sqrt(s))``: the identified inertia scales ``s`` (1 = CAD; :mod:`rcm_kin.identification.greybox`).
-  The Coriolis terms keep the CAD inertia.
+- ``J_extra``: inertia at the joint the CAD lacks, identified (:mod:`rcm_kin.identification.greybox`).
 """
 
 from __future__ import annotations
@@ -44,7 +43,6 @@ class DriveConstants:
     coulomb_velocity: np.ndarray   # rad/s (m/s)
     reflected_inertia: np.ndarray  # kg m^2 (kg)
     pwm_limit: np.ndarray          # firmware saturation, counts
-    inertia_scale: np.ndarray      # s: the mass matrix is D M D with D = diag(sqrt(s))
 
 
 def drive_constants(params: DriveParameters) -> DriveConstants:
@@ -55,8 +53,7 @@ def drive_constants(params: DriveParameters) -> DriveConstants:
         coulomb=np.array([x.coulomb for x in d]),
         coulomb_velocity=np.array([x.coulomb_velocity for x in d]),
         reflected_inertia=np.array([x.reflected_inertia for x in d]),
-        pwm_limit=np.array([x.pwm_limit for x in d]),
-        inertia_scale=np.array([x.inertia_scale for x in d]))
+        pwm_limit=np.array([x.pwm_limit for x in d]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,8 +109,7 @@ def driven_dynamics(robot, params: DriveParameters | None = None, q_fixed=None,
     zero = ca.DM.zeros(3)
     g_rigid = ca.substitute(rigid, ca.vertcat(v, a), ca.vertcat(zero, zero))
     g_offsets = _offset_gravity(robot, joints, gravity, params, phi, q)
-    scale = ca.diag(ca.DM(np.sqrt(drive.inertia_scale)))
-    M = scale @ (ca.jacobian(rigid, a) + ca.diag(ca.DM(drive.reflected_inertia))) @ scale
+    M = ca.jacobian(rigid, a) + ca.diag(ca.DM(drive.reflected_inertia))
     bias = ca.substitute(rigid, a, zero) + g_offsets
 
     tau = ca.DM(drive.input_gain) * u - ca.DM(drive.damping) * v

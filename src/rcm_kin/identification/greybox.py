@@ -3,12 +3,12 @@
 Per step log of one joint (the others held by their controllers at their measured angles),
 the physics model of that joint alone is simulated against the measured angle:
 
-    s M_ii(q) qdd = k_u (u_hold(q0) + du) - (d_i + b) qd - F_c tanh(qd / v_c) - g_i(q)
+    (M_ii(q) + J) qdd = k_u (u_hold(q0) + du) - (d_i + b) qd - F_c tanh(qd / v_c) - g_i(q)
 
 from rest at the log's angle ``q0``, with ``du`` the measured PWM step. ``M_ii``, ``g_i``,
 ``k_u`` and ``d_i`` (back-EMF) are the model's; starting from the model's own holding PWM
 ``u_hold(q0)`` keeps the static calibration out of the dynamic fit. The unknowns, shared by
-all logs, are the inertia scale ``s``, the viscous friction ``b`` (N m s/rad) and the Coulomb
+all logs, are the extra inertia ``J`` (kg m^2, beyond the CAD and the rotor), the viscous friction ``b`` (N m s/rad) and the Coulomb
 law's smoothing width ``v_c``; the Coulomb friction ``F_c`` (N m) is fitted per log (rad/s, at least 0.002: a narrower law
 sticks better but makes the ODE stiffer). RK4 with steps of at most 0.5 ms is unrolled in
 CasADi over each record, so the residual's Jacobian is exact (AD), and
@@ -33,9 +33,10 @@ from rcm_kin.identification.transfer_function import fit_percent
 from rcm_kin.telemetry import load_telemetry
 
 DEG = 180.0 / np.pi
-PARAMETERS = ("inertia_scale", "viscous", "coulomb", "coulomb_velocity")
-LOWER = np.array([0.1, 0.0, 0.0, 0.002])
-UPPER = np.array([10.0, 10.0, 5.0, 0.05])
+PARAMETERS = ("extra_inertia", "viscous", "coulomb", "coulomb_velocity")
+LOWER = np.array([0.0, 0.0, 0.0, 0.002])
+UPPER = np.array([2.0, 10.0, 5.0, 0.05])
+NEUTRAL_WIDTH = 0.02       # rad/s: Coulomb width of the neutral start
 MAX_STEP = 5e-4             # s: RK4 step bound (the friction's slope F_c / v_c makes the ODE stiff)
 HELD_INSERTION = 0.08       # m: the logs' insertion column is unusable (wrong conversion)
 
@@ -93,7 +94,7 @@ def step_logs(paths, joint: str, samples: int = 1000) -> list[StepLog]:
 def _residual_function(params: DriveParameters, joint: str, log: StepLog) -> ca.Function:
     """``theta -> (residual (N,) deg, d residual / d theta)`` of one log."""
     i = DRIVEN.index(joint)
-    base = driven_dynamics(_robot(), with_joint(params, joint, inertia_scale=1.0), coulomb=False)
+    base = driven_dynamics(_robot(), with_joint(params, joint, extra_inertia=0.0, viscous=0.0), coulomb=False)
     d = base.drive
     q, v, u = ca.SX.sym("q"), ca.SX.sym("v"), ca.SX.sym("u")
     theta = ca.SX.sym("theta", len(PARAMETERS))
@@ -102,7 +103,7 @@ def _residual_function(params: DriveParameters, joint: str, log: StepLog) -> ca.
     u_hold = holding_pwm(base, log.held)[i]
     tau = (d.input_gain[i] * (u_hold + u) - (d.damping[i] + theta[1]) * v
            - theta[2] * ca.tanh(v / theta[3]) - base.gravity(pose)[i])
-    f = ca.Function("f", [ca.vertcat(q, v), u, theta], [ca.vertcat(v, tau / (theta[0] * base.mass_matrix(pose)[i, i]))])
+    f = ca.Function("f", [ca.vertcat(q, v), u, theta], [ca.vertcat(v, tau / (base.mass_matrix(pose)[i, i] + theta[0]))])
     x = ca.SX.sym("x", 2)
     substeps = int(np.ceil(log.record.period / MAX_STEP))
     h = log.record.period / substeps
@@ -130,7 +131,7 @@ def _robot():
 
 
 def fit_greybox(params: DriveParameters, joint: str, logs: list[StepLog]) -> GreyBoxFit:
-    """Fit the inertia scale, viscous friction and Coulomb width of ``joint`` shared by all step
+    """Fit the extra inertia, viscous friction and Coulomb width of ``joint`` shared by all step
     logs, with a Coulomb friction per log (it varies with the pose: the steps are barely larger
     than the friction, so a few per cent of it decide how far each one moves). The fitted set
     takes the median Coulomb; ``fit_after`` is that set's fit, ``fit_per_log_friction`` the
@@ -140,7 +141,7 @@ def fit_greybox(params: DriveParameters, joint: str, logs: list[StepLog]) -> Gre
     functions = [_residual_function(params, joint, log) for log in logs]
     n = len(logs)
     start_set = np.clip([getattr(params[joint], name) for name in PARAMETERS], LOWER, UPPER)
-    shared = [0, 1, 3]                                    # inertia scale, viscous, width
+    shared = [0, 1, 3]                                    # extra inertia, viscous, width
 
     def theta_of(z, k):                                   # z = [shared (3), coulomb per log (n)]
         return np.array([z[0], z[1], z[3 + k], z[2]])
@@ -164,12 +165,15 @@ def fit_greybox(params: DriveParameters, joint: str, logs: list[StepLog]) -> Gre
             rows.append(block)
         return np.vstack(rows)
 
-    z0 = np.r_[start_set[shared], np.full(n, start_set[2])]
     lower = np.r_[LOWER[shared], np.full(n, LOWER[2])]
     upper = np.r_[UPPER[shared], np.full(n, UPPER[2])]
-    solution = least_squares(lambda z: np.concatenate([r for r, _ in evaluate(z)]), z0, jac=jacobian,
-                             bounds=(lower, upper), x_scale="jac")
-    z = solution.x
+    # friction makes local minima: start from the given set and from a neutral one (no extra
+    # inertia or viscous friction, a wide Coulomb law), keep the better
+    starts = [start_set, np.array([0.0, 0.0, start_set[2], NEUTRAL_WIDTH])]
+    solutions = [least_squares(lambda z: np.concatenate([r for r, _ in evaluate(z)]),
+                               np.clip(np.r_[s[shared], np.full(n, s[2])], lower, upper), jac=jacobian,
+                               bounds=(lower, upper), x_scale="jac") for s in starts]
+    z = min(solutions, key=lambda sol: sol.cost).x
     per_log = z[3:]
     fitted = np.array([z[0], z[1], float(np.median(per_log)), z[2]])
 
