@@ -24,7 +24,7 @@ def main() -> None:
     model = driven_dynamics(load_robot("psm"), coulomb=False)
 
     thesis = identify_log(data / "single-axis" / "roll_step.csv", "roll").fit
-    print(f"thesis roll model (0,0): (4.0426 s - 8.3312)/(s^2 + 6.1202 s + 16.288), DC -0.5115 deg/PWM")
+    print("thesis roll model (0,0): (4.0426 s - 8.3312)/(s^2 + 6.1202 s + 16.288), DC -0.5115 deg/PWM")
     print(f"  from roll_step.csv: num {thesis.num.round(4).tolist()}, den {thesis.den.round(4).tolist()}, "
           f"DC {thesis.dc_gain:.4f}, fit {thesis.fit_percent:.1f} %")
     for folder, joint, orders in (("roll-step", "roll", (2,)), ("pitch-prbs", "pitch", (3, 4))):

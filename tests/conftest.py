@@ -30,3 +30,17 @@ def psm():
 def mtm():
     from rcm_kin import load_robot
     return load_robot("mtm")
+
+
+@pytest.fixture(scope="session")
+def params():
+    """The shipped drive parameters."""
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    return load_drive_parameters()
+
+
+@pytest.fixture(scope="session")
+def model(psm, params):
+    """The PSM's driven-joint dynamics with the shipped parameters (Coulomb friction included)."""
+    from rcm_kin.dynamics.state_space import driven_dynamics
+    return driven_dynamics(psm, params)

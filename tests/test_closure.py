@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
-import pytest
 
 from rcm_kin.closure import constrained, reduced
 

@@ -11,7 +11,7 @@ from rcm_kin import RcmKinError
 from rcm_kin.closure.reduced import reduced_mass_matrix, relation_jacobian, tree_configuration
 from rcm_kin.control.linearization import (equilibrium, linearize, linearize_finite_differences, linearize_grid,
                                            linearize_pinocchio)
-from rcm_kin.dynamics.drive import drive_effort, load_drive_parameters
+from rcm_kin.dynamics.drive import drive_effort
 from rcm_kin.dynamics.gravity import gravity_batch
 from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
@@ -91,16 +91,6 @@ def test_closed_chain_rnea_matches_the_mimic_model(psm):
         expected = psm.from_reduced(pin.rnea(psm.reduced, psm.reduced_data, psm.to_reduced(qa),
                                              psm.to_reduced(va), psm.to_reduced(aa)))
         np.testing.assert_allclose(np.array(tau(qa, va, aa)).ravel(), expected, rtol=0, atol=TOL)
-
-
-@pytest.fixture(scope="module")
-def params():
-    return load_drive_parameters()
-
-
-@pytest.fixture(scope="module")
-def model(psm, params):
-    return driven_dynamics(psm, params)
 
 
 def driven_poses(n, seed):

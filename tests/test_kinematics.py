@@ -11,7 +11,7 @@ from dh_reference import mtm_frames, psm_frames
 from rcm_kin import RcmKinError
 from rcm_kin.kinematics.fk import forward_kinematics, frame_placement
 from rcm_kin.kinematics.numeric_ik import solve_ik
-from rcm_kin.kinematics.psm_ik import ARM, WRIST, shaft_tip_ik, tool_pose_ik, wrist_ik
+from rcm_kin.kinematics.psm_ik import shaft_tip_ik, tool_pose_ik, wrist_ik
 from rcm_kin.kinematics.teleop import default_teleop_map, psm_targets, teleop_joint_targets
 
 TIP_OFFSET = 0.02349  # m: l_RCM - l_tool, the shaft tip is q3 - 23.49 mm beyond the RCM

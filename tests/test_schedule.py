@@ -12,8 +12,8 @@ from scipy.linalg import solve_continuous_are
 
 from rcm_kin import RcmKinError
 from rcm_kin.cli import main
-from rcm_kin.control.firmware_export import header_text, write_gain_schedule
-from rcm_kin.control.gain_schedule import (DEG, THESIS_PITCH_DEG, THESIS_ROLL_DEG, axis_model, bilinear,
+from rcm_kin.control.firmware_export import header_text
+from rcm_kin.control.gain_schedule import (THESIS_PITCH_DEG, THESIS_ROLL_DEG, axis_model, bilinear,
                                            closed_loop_matrix, lqr_axis, parse_grid, pitch_gains, roll_gains,
                                            schedule_gains, scheduled_gains)
 from rcm_kin.control.linearization import linearize

@@ -11,7 +11,7 @@ from scipy.integrate import solve_ivp
 
 from rcm_kin import RcmKinError
 from rcm_kin.cli import main
-from rcm_kin.dynamics.drive import DRIVEN, load_drive_parameters, with_joint
+from rcm_kin.dynamics.drive import DRIVEN, with_joint
 from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.kinematics.teleop import default_teleop_map, psm_targets
@@ -62,16 +62,6 @@ def test_rk4_period_map_matches_the_closed_form_second_order_response():
     wd = w * np.sqrt(1 - z**2)
     exact = k * u0 / w**2 * (1 - np.exp(-z * w) * (np.cos(wd) + z / np.sqrt(1 - z**2) * np.sin(wd)))
     np.testing.assert_allclose(xk[:3], exact, rtol=0, atol=1e-9)
-
-
-@pytest.fixture(scope="module")
-def params():
-    return load_drive_parameters()
-
-
-@pytest.fixture(scope="module")
-def model(psm, params):
-    return driven_dynamics(psm, params)
 
 
 def test_period_map_on_the_psm_matches_an_adaptive_solver(model):
