@@ -170,3 +170,18 @@ def test_sysid_cli_contract(shared_data, capsys):
     np.testing.assert_allclose(np.sort_complex(np.linalg.eigvals(A)), np.sort_complex(np.roots(out["den"])),
                                atol=1e-9)
     assert (-C @ np.linalg.solve(A, B) + D).item() == pytest.approx(out["num"][-1] / out["den"][-1], rel=1e-9)
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--order", "0"], "poles"),
+    (["--pose", "40", "0"], "outside the joint range"),
+    (["--samples", "10"], "--samples"),
+])
+def test_sysid_cli_user_errors_are_one_line(tmp_path, capsys, extra, message):
+    t = np.arange(400) * 0.002
+    u = np.where(t > 0.2, -15.0, -10.0)
+    path = write_log(tmp_path / "step.csv", zip(t, np.where(t > 0.2, 1 - np.exp(-(t - 0.2) * 5), 0), u),
+                     ["time", "roll_position", "roll_velocity"])
+    assert main(["sysid", str(path), "--joint", "roll", *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and message in err and err.count("\n") == 1

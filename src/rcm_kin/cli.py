@@ -321,7 +321,10 @@ def cmd_sysid(args) -> None:
 
     from rcm_kin.identification.pose_models import identify_folder, identify_log, pose_table_rows, write_pose_table
 
-    model = _driven_model(argparse.Namespace(robot="psm", params=args.params), coulomb=False)
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.dynamics.state_space import driven_dynamics
+
+    model = driven_dynamics(load_robot("psm"), load_drive_parameters(args.params), coulomb=False)
     options = dict(method=args.method, order=args.order, zeros=args.zeros, samples=args.samples,
                    segment=args.segment)
     if args.samples < 50:

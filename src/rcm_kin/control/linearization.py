@@ -52,7 +52,8 @@ def equilibrium(model: DrivenDynamics, q) -> tuple[np.ndarray, np.ndarray]:
 
 
 def check_in_range(model: DrivenDynamics, Q: np.ndarray, tol: float = 1e-9) -> None:
-    """Refuse poses (N, 3) outside the driven joints' limits: the model means nothing there."""
+    """Refuse poses (N, 3) or (3,) outside the driven joints' limits: the model means nothing there."""
+    Q = np.atleast_2d(Q)
     outside = np.any((Q < model.lower - tol) | (Q > model.upper + tol), axis=0)
     if np.any(outside):
         limits = ", ".join(f"{j} {lo:.4g} to {hi:.4g}" for j, lo, hi, o in

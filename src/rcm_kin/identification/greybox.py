@@ -30,6 +30,7 @@ from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
 from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.records import Record, step_record
 from rcm_kin.identification.transfer_function import fit_percent
+from rcm_kin.robot import load_robot
 from rcm_kin.telemetry import load_telemetry
 
 DEG = 180.0 / np.pi
@@ -94,7 +95,7 @@ def step_logs(paths, joint: str, samples: int = 1000) -> list[StepLog]:
 def _residual_function(params: DriveParameters, joint: str, log: StepLog) -> ca.Function:
     """``theta -> (residual (N,) deg, d residual / d theta)`` of one log."""
     i = DRIVEN.index(joint)
-    base = driven_dynamics(_robot(), with_joint(params, joint, extra_inertia=0.0, viscous=0.0), coulomb=False)
+    base = driven_dynamics(load_robot("psm"), with_joint(params, joint, extra_inertia=0.0, viscous=0.0), coulomb=False)
     d = base.drive
     q, v, u = ca.SX.sym("q"), ca.SX.sym("v"), ca.SX.sym("u")
     theta = ca.SX.sym("theta", len(PARAMETERS))
@@ -123,11 +124,6 @@ def _residual_function(params: DriveParameters, joint: str, log: StepLog) -> ca.
     y = ca.vertcat(0.0, (states[0, :-1].T - q0) * DEG)
     r = y - ca.DM(log.record.y)
     return ca.Function("residual", [p], [r, ca.jacobian(r, p)])
-
-
-def _robot():
-    from rcm_kin.robot import load_robot
-    return load_robot("psm")
 
 
 def fit_greybox(params: DriveParameters, joint: str, logs: list[StepLog]) -> GreyBoxFit:

@@ -80,7 +80,8 @@ def identify_log(path, joint: str, method: str | None = None, order: int | None 
     record = step_record(log, joint, samples) if method == "step" else prbs_record(log, joint)
     if method == "prbs":
         segment = min(segment or PRBS_SEGMENT, record.u.size)
-    fit = fit_transfer_function(record.u, record.y, record.period, order or DEFAULT_ORDER[method], zeros,
+    order = DEFAULT_ORDER[method] if order is None else order
+    fit = fit_transfer_function(record.u, record.y, record.period, order, zeros,
                                 segment=segment if method == "prbs" else None)
     pose = pose_deg if pose_deg is not None else operating_point(path)
     physics = physics_axis(model, joint, *pose) if (model is not None and pose is not None) else None
