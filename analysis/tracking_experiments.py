@@ -45,10 +45,13 @@ def run_all(params, trajectory, label: str, out: Path) -> list[dict]:
         for r in results:
             tag = r.controller.replace(" ", "_").replace(",", "")
             tracking_figure(r, out / f"{label}_{experiment}_{tag}.png", title=f"{experiment}, {r.controller}:")
+            settled = tracking_metrics(r, skip=0.5)
             for axis, m in tracking_metrics(r).items():
                 thesis = THESIS_SINE.get(r.controller, {}).get(axis) if experiment == "sine" else None
                 rows.append({"parameters": label, "experiment": experiment, "controller": r.controller,
                              "axis": axis, **{k: round(v, 4) for k, v in vars(m).items()},
+                             "max_error_after_0.5s": round(settled[axis].max_error_deg, 4),
+                             "mean_error_after_0.5s": round(settled[axis].mean_error_deg, 4),
                              "thesis_max_deg": thesis[0] if thesis else "", "thesis_mean_deg": thesis[1] if thesis else ""})
         pair = [r for r in results if r.controller in ("p", "scheduled-gravity")]
         error_comparison_figure(pair, out / f"{label}_{experiment}_p_vs_scheduled.png", title=f"{experiment}:")
@@ -78,7 +81,8 @@ def main() -> None:
     for r in rows:
         if r["experiment"] == "sine" or r["controller"] in ("p", "scheduled-gravity"):
             print(f"{r['parameters']:8} {r['experiment']:6} {r['controller']:22} {r['axis']:5} max {r['max_error_deg']:.3f} "
-                  f"mean {r['mean_error_deg']:.3f} RMS {r['rms_error_deg']:.3f} deg, PWM RMS {r['rms_pwm']:.1f}, "
+                  f"mean {r['mean_error_deg']:.3f} (after 0.5 s {r['max_error_after_0.5s']:.3f}/"
+                  f"{r['mean_error_after_0.5s']:.3f}) RMS {r['rms_error_deg']:.3f} deg, PWM RMS {r['rms_pwm']:.1f}, "
                   f"sat {r['saturation_s']:.3f} s  thesis {r['thesis_max_deg']}/{r['thesis_mean_deg']}")
     print(f"wrote {out}/tracking_metrics.csv and the figures")
 

@@ -179,6 +179,15 @@ def test_model_based_control_tracks_the_sinusoid_better_than_p():
         assert s[axis].max_error_deg < p[axis].max_error_deg
 
 
+def test_statistics_can_leave_out_the_start():
+    F = as_step(period_map(linear_forward(np.array([-0.05, -0.02, 1e-4])), T))
+    result = simulate(F, PController(), step_reference(1.0, T, step_deg=(2.0, -3.0), at=0.5), EXACT, settle=0.0)
+    after = tracking_metrics(result, skip=0.75)
+    keep = result.time >= 0.75
+    assert after["pitch"].max_error_deg == np.max(np.abs(result.error[keep, 1]))
+    assert after["roll"].max_error_deg < tracking_metrics(result)["roll"].max_error_deg
+
+
 def test_unknown_controller_is_refused():
     with pytest.raises(RcmKinError, match="unknown controller"):
         make_controller("mpc")
@@ -200,6 +209,7 @@ def test_simulate_cli_contract(capsys):
     (["--experiment", "sine", "--controller", "p", "--rate", "-5"], "--rate"),
     (["--experiment", "sine", "--controller", "p", "--duration", "0"], "duration"),
     (["--experiment", "target", "--controller", "p", "--trajectory", "nowhere.csv"], "cannot read"),
+    (["--experiment", "step", "--controller", "p", "--skip", "5"], "statistics start"),
 ])
 def test_simulate_cli_errors_are_one_line(capsys, argv, message):
     assert main(["simulate", "psm", *argv]) == 2

@@ -291,7 +291,7 @@ def cmd_simulate(args) -> None:
                                 noise_counts=args.noise_counts)
     result = run_experiment(args.experiment, args.controller, args.duration, load_drive_parameters(args.params),
                             settings, args.trajectory, seed=args.seed, progress=sys.stderr.isatty())
-    metrics = tracking_metrics(result)
+    metrics = tracking_metrics(result, args.skip)
     payload = {axis: vars(m) for axis, m in metrics.items()}
     lines = [f"{args.experiment} with {args.controller}, {result.time[-1]:.2f} s at {args.rate:g} Hz:"] + [
         f"{axis:5}  max {m.max_error_deg:.3f}  mean {m.mean_error_deg:.3f}  RMS {m.rms_error_deg:.3f} deg;  "
@@ -527,6 +527,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rate", type=float, default=400.0, help="controller rate in Hz (default 400)")
     p.add_argument("--pwm-limit", nargs=3, metavar=("ROLL", "PITCH", "INS"),
                    help="PWM saturation in counts (default 100 150 100)")
+    p.add_argument("--skip", type=float, default=0.0,
+                   help="leave the first S seconds out of the statistics (default 0; the sinusoid starts at "
+                        "full speed)")
     p.add_argument("--noise-counts", type=float, default=0.0, help="encoder noise std in counts (default 0)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the encoder noise (default 0)")
     p.add_argument("--params", help="drive parameter TOML (default: the shipped calibrated set)")

@@ -101,12 +101,16 @@ class AxisMetrics:
     saturation_s: float         # time with the command at or beyond the PWM limit
 
 
-def tracking_metrics(result: SimulationResult) -> dict[str, AxisMetrics]:
-    """Per axis (roll, pitch): error statistics of ``reference - measured`` and the effort."""
+def tracking_metrics(result: SimulationResult, skip: float = 0.0) -> dict[str, AxisMetrics]:
+    """Per axis (roll, pitch): error statistics of ``reference - measured`` and the effort, from
+    ``skip`` s on (e.g. past the start of a sinusoid that begins at full speed)."""
+    keep = result.time >= skip
+    if not (np.isfinite(skip) and skip >= 0 and keep.any()):
+        raise RcmKinError(f"the statistics start within the run (0 <= skip < {result.time[-1]:g} s), got {skip}")
     out = {}
     for i, axis in enumerate(AXES):
-        e, u = result.error[:, i], result.pwm[:, i]
-        saturated = np.abs(result.command[:, i]) >= result.settings.pwm_limit[i]
+        e, u = result.error[keep, i], result.pwm[keep, i]
+        saturated = np.abs(result.command[keep, i]) >= result.settings.pwm_limit[i]
         out[axis] = AxisMetrics(float(np.max(np.abs(e))), float(np.mean(np.abs(e))), float(np.sqrt(np.mean(e**2))),
                                 float(np.sqrt(np.mean(u**2))), float(np.mean(np.abs(u))),
                                 float(np.count_nonzero(saturated) * result.settings.period))
