@@ -31,7 +31,11 @@ EPILOG_SYSID = ("examples: rcm-kin sysid roll_step.csv --joint roll --json   (2n
                 "(every pose of a folder, beside the physics)")
 EPILOG_GREYBOX = ("example: rcm-kin greybox psm-sysid/roll-step --joint roll --out roll_fitted.toml\n"
                   "         rcm-kin simulate psm --experiment sine --controller p --params roll_fitted.toml")
-EPILOG_REPORT = "example: rcm-kin report --out report && open report/index.html"
+EPILOG_VIEW = ("examples: rcm-kin view psm --q 10 -5 0.08 --deg --html psm.html   (self-contained page)\n"
+               "          rcm-kin view mtm --frames wrist_center tool_tip   (serves on localhost, prints the URL)\n"
+               "          rcm-kin view psm --q 10 -5 0.08 --deg --png psm.png   (matplotlib drawing)")
+EPILOG_REPORT = ("examples: rcm-kin report --out report   (then open report/index.html)\n"
+                 "          rcm-kin report --out report --data ../shared/data   (with the measured logs)")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -387,10 +391,43 @@ def cmd_greybox(args) -> None:
     _emit(args, payload, "\n".join(lines))
 
 
+def cmd_view(args) -> None:
+    from rcm_kin.visualization.views import robot_view, show, write_html
+
+    robot = load_robot(args.robot)
+    q = _floats(args.q, "joint values")
+    if args.deg:
+        q = _degrees_to_si(robot, q)
+    q = robot.check_q(q, allow_short=True)
+    frames = tuple(args.frames or ())
+    if args.png:
+        from rcm_kin.visualization.drawing import robot_drawing
+
+        print(f"wrote {robot_drawing(robot, q, args.png, title=robot.name.upper())}")
+    if args.html:
+        viz = robot_view(robot, frames=frames)
+        show(viz, robot, q)
+        print(f"wrote {write_html(viz, args.html)}")
+    if args.html or args.png:
+        return
+    import meshcat
+
+    live = meshcat.Visualizer()            # starts the meshcat server and prints its URL
+    viz = robot_view(robot, window=live.window, frames=frames)
+    show(viz, robot, q)
+    print("serving; press Ctrl-C to stop", flush=True)
+    try:
+        import time
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        print("stopped")
+
+
 def cmd_report(args) -> None:
     from rcm_kin.report import write_report
 
-    index = write_report(args.out)
+    index = write_report(args.out, args.data, args.map_points, progress=True)
     print(f"report written: {index}")
 
 
@@ -571,9 +608,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help='{"before", "after", "coulomb_per_log", "fit_percent_before", "fit_percent_after", ...}')
     p.set_defaults(func=cmd_greybox)
 
+    p = sub.add_parser("view", help="meshcat view of a robot: served on localhost, or a self-contained HTML page",
+                       epilog=EPILOG_VIEW, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("robot", help=f"robot name ({robots})")
+    p.add_argument("--q", nargs="*", default=[], metavar="Q",
+                   help="actuated joint values in 'info' order (rad, m; missing trailing values are 0)")
+    p.add_argument("--deg", action="store_true", help="revolute values in degrees (prismatic stay in m)")
+    p.add_argument("--frames", nargs="*", metavar="FRAME", help="frames to show as axis triads (e.g. rcm tool_tip)")
+    p.add_argument("--html", metavar="FILE", help="write a self-contained page instead of serving")
+    p.add_argument("--png", metavar="FILE", help="write a matplotlib drawing instead of serving")
+    p.set_defaults(func=cmd_view)
+
     p = sub.add_parser("report", help="run the main job on the bundled models and write index.html",
                        epilog=EPILOG_REPORT)
     p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument("--data", help="folder of measured logs (psm-sysid layout): adds calibration, identification "
+                                  "per pose and the grey-box fit, and uses its MTM recording for target following")
+    p.add_argument("--map-points", type=int, default=61,
+                   help="poses per axis of the holding-effort maps over +-30 deg (default 61)")
     p.set_defaults(func=cmd_report)
     return parser
 

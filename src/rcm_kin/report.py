@@ -1,9 +1,11 @@
 """``rcm-kin report``: the main job on the bundled models, written as a browsable index.html.
 
-Sections so far: model summary, kinematic self-checks (loop closure, constrained vs reduced
-model, RCM fixity, IK round trips), holding-effort maps with the thesis Fig 4.6/4.7 curves, the
-drive parameters and the counterweight design, the model-based gain schedule beside the
-thesis's tables. Later stages of the pipeline add theirs.
+Sections: model summary with pictures and meshcat pages of both robots, kinematic self-checks
+(loop closure, constrained vs reduced model, RCM fixity, IK round trips), holding-effort maps
+with the thesis Fig 4.6/4.7 curves, the drive parameters and the counterweight design, the
+linear models per grid pose, the model-based gain schedule beside the thesis's tables, and the
+thesis's tracking experiments (P against the scheduled controller) with animations. With a
+data folder: calibration, identification per pose and the grey-box fit on the measured logs.
 """
 
 from __future__ import annotations
@@ -18,11 +20,13 @@ import pinocchio as pin
 import yourdfpy
 
 from rcm_kin.closure import constrained, reduced
-from rcm_kin.errors import output_folder
+from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.kinematics.numeric_ik import solve_ik
 from rcm_kin.kinematics.psm_ik import rcm_geometry, shaft_tip_ik
 from rcm_kin.robot import load_robot
+
+VIEW_POSES = {"psm": [np.radians(10.0), np.radians(-15.0), 0.10], "mtm": [0.3, 0.2, 0.4]}
 
 
 @dataclass(frozen=True)
@@ -126,7 +130,7 @@ def gravity_section(out: Path, n: int = 61) -> list[str]:
     ]
 
 
-def schedule_section(out: Path) -> list[str]:
+def schedule_section(out: Path) -> tuple:
     """Model-based gain schedule on the thesis grid, its export, and the thesis's tables beside it."""
     from rcm_kin.control.firmware_export import write_gain_schedule
     from rcm_kin.control.thesis_comparison import THESIS_K_PITCH, THESIS_K_ROLL, compare_with_thesis
@@ -157,7 +161,10 @@ def schedule_section(out: Path) -> list[str]:
                                 ("thesis tables, Kd sign flipped", c.thesis_damping_flipped))]
     poles = ", ".join(f"{p.real:+.3g}{p.imag:+.3g}j" for p in c.thesis_on_identified_roll)
     w = s.weights
-    return [
+    spread = max(np.ptp(t) / np.abs(t).mean() for t in (s.k_roll[..., 0], s.k_pitch[..., 0]))
+    home = (len(s.pitch_deg) // 2, len(s.roll_deg) // 2)
+    roll_damping = -s.A[home][3, 3]
+    return s, [
         "<h2>Gain schedule: roll LQR, pitch LQI, from the linearised model (insertion 80 mm)</h2>",
         f"<p>Bryson budgets: roll error {w.roll_error_deg:g} deg, rate {w.roll_rate_deg_s:g} deg/s, "
         f"PWM {w.roll_pwm:g}; pitch error {w.pitch_error_deg:g} deg, rate {w.pitch_rate_deg_s:g} deg/s, "
@@ -171,23 +178,163 @@ def schedule_section(out: Path) -> list[str]:
         _table(verdict, ["gains", "stable", "max Re (continuous, 1/s)", "slowest decay, 400 Hz loop (1/s)",
                          "least damping, 400 Hz loop"]),
         '<p><img src="stability_maps.png" width="900"></p>',
-        "<p>What differs and why. (1) The model's gains hardly vary over the grid (under 5 %): the closed-loop "
+        f"<p>What differs and why. (1) The model's gains hardly vary over the grid ({100 * spread:.1f} % at most): "
+        "the closed-loop "
         "stiffness (Kp times the drive gain) is at least 50 times the gravity stiffness, and gravity is better "
         "handled by the holding-PWM feedforward (exported as u_hold) than by re-tuning. The thesis's table "
         "variations (roll Kp 130-138, pitch Kp 151-195) come from identifying each point separately. "
         "(2) The model's Kd is negative in the firmware's sign: with positive PWM lowering the angle, a "
         "positive Kd feeds the velocity back with the accelerating sign. The thesis's positive Kd is "
         "anti-damping on the model. There the roll and pitch loops go unstable, unless the real drive "
-        "damps far more than the back-EMF of the assumed motor constants (the thesis's identified roll "
-        "damping, 6.1/s, is four times the model's 1.5/s). "
+        "damps far more than the model (the thesis's identified roll damping is 6.1/s, the model's "
+        f"{roll_damping:.2g}/s at roll = pitch = 0). "
         "(3) The thesis's Ki (about 0.15) puts the integrator pole near -0.001/s: in effect no integral "
         "action. The model-based Ki (300) removes an offset in about 0.25 s. (4) On the thesis's own "
         f"identified roll model G(s), which has a right-half-plane zero at +2.06 rad/s, its (0, 0) gains "
         f"give closed-loop poles {poles} rad/s. The identified transfer functions cannot be the loop the "
         "firmware actually closed. (5) The least-damped mode of the model-based loop is the firmware's "
         "insertion P loop (nominal drive constants, not scheduled here). The roll's velocity filter (EMA "
-        "0.9) lowers the roll damping from the design's 0.76 to about 0.25 at 400 Hz.</p>",
+        "0.9) and the sampling lower the damping the continuous design gives.</p>",
     ]
+
+
+def robots_section(out: Path) -> list[str]:
+    """A drawing and a self-contained meshcat page of each robot."""
+    from rcm_kin.visualization.drawing import robot_drawing
+    from rcm_kin.visualization.views import robot_view, show, write_html
+
+    parts = ["<h2>The robots</h2><p>"]
+    for name, q in VIEW_POSES.items():
+        robot = load_robot(name)
+        robot_drawing(robot, q, out / f"{name}.png", title=name.upper())
+        viz = robot_view(robot, frames=("rcm", "shaft_tip", "tool_tip") if name == "psm" else
+                         ("wrist_center", "tool_tip"))
+        show(viz, robot, q)
+        write_html(viz, out / f"{name}_view.html")
+        parts.append(f'<a href="{name}_view.html"><img src="{name}.png" width="380" '
+                     f'title="{name}: open the 3-D view"></a>')
+    parts.append("</p><p>Click a picture for its meshcat page (self-contained; drag to turn, scroll to zoom). "
+                 "PSM: parallelogram bars blue, brass counterweights, the RCM red; the frames rcm, shaft_tip "
+                 "and tool_tip are drawn.</p>")
+    return parts
+
+
+def linear_models_section(out: Path, schedule) -> list[str]:
+    """The linear models of the schedule's grid: JSON with A, B per pose, and their poles."""
+    models, rows = [], []
+    for j, pitch in enumerate(schedule.pitch_deg):
+        for i, roll in enumerate(schedule.roll_deg):
+            A, B = schedule.A[j, i], schedule.B[j, i]
+            models.append({"roll_deg": float(roll), "pitch_deg": float(pitch), "insertion_m": schedule.insertion,
+                           "A": A.tolist(), "B": B.tolist(), "u_hold_pwm": schedule.u_hold[j, i].tolist()})
+            poles = np.linalg.eigvals(A)
+            rows.append([f"{roll:g}", f"{pitch:g}", f"{B[3, 0]:+.4g}", f"{B[4, 1]:+.4g}",
+                         " ".join(f"{p.real:+.3g}{p.imag:+.2g}j" if abs(p.imag) > 1e-9 else f"{p.real:+.3g}"
+                                  for p in sorted(poles, key=lambda p: p.real))])
+    (out / "linear_models.json").write_text(json.dumps(models, indent=1))
+    return ["<h2>Linear models per grid pose (Coulomb friction left out)</h2>",
+            "<p>State [roll, pitch, insertion, their rates] (rad, m, rad/s, m/s), input the three PWMs. "
+            'All matrices: <a href="linear_models.json">linear_models.json</a>.</p>',
+            _table(rows, ["roll (deg)", "pitch (deg)", "B roll (rad/s^2 per PWM)", "B pitch", "poles of A (1/s)"])]
+
+
+def tracking_section(out: Path, schedule, trajectory=None) -> list[str]:
+    """The thesis's sinusoid and target following: P against the scheduled controllers."""
+    from rcm_kin.figures import error_comparison_figure, tracking_figure
+    from rcm_kin.simulation.controllers import make_controller
+    from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule
+    from rcm_kin.simulation.firmware import FirmwareSettings
+    from rcm_kin.simulation.loop import simulate, tracking_metrics
+    from rcm_kin.visualization.views import animate, frame_path, robot_view, scalar_trail, write_html
+
+    settings = FirmwareSettings()
+    step, _ = psm_plant_and_schedule(period=settings.period)
+    psm = load_robot("psm")
+    thesis = {("p", "roll"): "1.17 / 0.62", ("p", "pitch"): "2.31 / 1.52",
+              ("scheduled", "roll"): "0.41 / 0.21", ("scheduled", "pitch"): "0.35 / 0.12"}
+    folder = output_folder(out / "tracking")
+    rows, parts = [], []
+    for experiment in ("sine", "target"):
+        reference = experiment_reference(experiment, settings.period, trajectory=trajectory)
+        results = [simulate(step, make_controller(name, schedule), reference, settings)
+                   for name in ("p", "scheduled", "scheduled-gravity")]
+        for r in results:
+            tracking_figure(r, folder / f"{experiment}_{r.controller}.png", title=f"{experiment}, {r.controller}:")
+            whole, settled = tracking_metrics(r), tracking_metrics(r, skip=0.5)
+            for axis in ("roll", "pitch"):
+                m = whole[axis]
+                rows.append([experiment, r.controller, axis, f"{m.max_error_deg:.3f} / {m.mean_error_deg:.3f}",
+                             f"{settled[axis].max_error_deg:.3f} / {settled[axis].mean_error_deg:.3f}",
+                             f"{m.rms_error_deg:.3f}", f"{m.rms_pwm:.1f}", f"{m.saturation_s:.3f}",
+                             thesis.get((r.controller, axis), "") if experiment == "sine" else ""])
+        error_comparison_figure(results, folder / f"{experiment}_errors.png", title=f"{experiment}:")
+        # animation of the scheduled run, the tool-tip path coloured by the pitch PWM
+        run = results[-1]
+        Q = np.zeros((len(run.time), psm.nq))
+        Q[:, :3] = np.column_stack([np.radians(run.position[:, 0]), np.radians(run.position[:, 1]), run.position[:, 2]])
+        viz = robot_view(psm)
+        every = 8
+        animate(viz, psm, Q, settings.period, every=every)
+        scalar_trail(viz, "pitch_pwm", frame_path(psm, Q[::every], "tool_tip"), run.pwm[::every, 1])
+        write_html(viz, folder / f"{experiment}_animation.html")
+        parts.append(f'<h3>{experiment}</h3><p><img src="tracking/{experiment}_errors.png" width="800"><br>'
+                     + " ".join(f'<a href="tracking/{experiment}_{r.controller}.png">{r.controller}</a>'
+                                for r in results)
+                     + f' (reference, measured, error and PWM); <a href="tracking/{experiment}_animation.html">'
+                     "3-D animation</a> of the scheduled-gravity run, the tool-tip path coloured by the pitch PWM "
+                     "(blue negative, red positive).</p>")
+    source = "the MTM recording given" if trajectory else "the bundled figure-eight MTM trajectory"
+    return ["<h2>Tracking experiments on the model (thesis Ch. 5)</h2>",
+            "<p>The 400 Hz firmware loop on the nonlinear model (friction, encoder counts, EMA velocity, "
+            f"PWM saturation and whole counts). Sinusoid: roll 20 deg and pitch 15 deg, 3 s period; target: {source} "
+            "through the teleoperation map and the PSM IK. Errors max / mean in deg, over the run and from "
+            "0.5 s on (the sinusoid starts at full speed); the thesis's are measured on the robot.</p>",
+            _table(rows, ["experiment", "controller", "axis", "max / mean", "from 0.5 s", "RMS", "PWM RMS",
+                          "saturated (s)", "thesis max / mean"])] + parts
+
+
+def data_section(out: Path, data: Path) -> list[str]:
+    """Calibration, identification per pose and the grey-box fit on a folder of measured logs."""
+    from rcm_kin.calibration import calibrate, calibration_logs, holding_points
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.dynamics.state_space import driven_dynamics
+    from rcm_kin.figures import greybox_figure
+    from rcm_kin.identification.greybox import fit_greybox, step_logs, write_greybox_parameters
+    from rcm_kin.identification.pose_models import identify_folder, pose_table_rows, write_pose_table
+
+    params = load_drive_parameters()
+    parts = [f"<h2>Measured data: {html.escape(str(data))}</h2>"]
+    points = holding_points(calibration_logs(data))
+    cal = calibrate(load_robot("psm"), params, points)
+    parts += ["<h3>Calibration on the holding efforts</h3>",
+              _table([[n, f"{v:+.4g}", f"{sd:.2g}"] for n, v, sd in zip(cal.names, cal.values, cal.std)],
+                     ["parameter", "value", "std"]),
+              f"<p>{len(points)} holding points; residual RMS roll {cal.residual_rms[0]:.2f}, pitch "
+              f"{cal.residual_rms[1]:.2f} PWM.</p>"]
+    model = driven_dynamics(load_robot("psm"), params, coulomb=False)
+    folder = output_folder(out / "identification")
+    for sub, joint in (("roll-step", "roll"), ("pitch-prbs", "pitch")):
+        logs = sorted(data.glob(f"**/{sub}"))
+        if not logs:
+            continue
+        models = identify_folder(logs[0], joint, model)
+        path = write_pose_table(models, folder / f"{joint}_pose_models.csv")
+        rows = [[r["file"], f"{r['fit_percent']:.1f}", f"{r['dc_gain']:+.4f}", r["poles"],
+                 f"{r.get('physics_dc_gain', float('nan')):+.4f}", r.get("physics_poles", "")]
+                for r in pose_table_rows(models)]
+        parts += [f"<h3>Identified {joint} models per pose ({'step, 2 poles' if joint == 'roll' else 'PRBS, 3 poles'})"
+                  "</h3>", _table(rows, ["log", "fit %", "DC (deg/PWM)", "poles (1/s)", "physics DC", "physics poles"]),
+                  f'<p><a href="identification/{path.name}">{path.name}</a></p>']
+        if joint == "roll":
+            fit = fit_greybox(params, "roll", step_logs(sorted(logs[0].glob("*.csv")), "roll"))
+            write_greybox_parameters(fit, folder / "roll_greybox.toml")
+            greybox_figure(fit, folder / "roll_greybox.png")
+            parts += ["<h4>Grey-box fit of the roll (extra inertia, viscous, Coulomb and its width)</h4>",
+                      _table([[n, f"{b:.4g}", f"{a:.4g}"] for n, b, a in zip(fit.names, fit.before, fit.after)],
+                             ["parameter", "starting set", "fitted"]),
+                      '<p><img src="identification/roll_greybox.png" width="900"><br>'
+                      '<a href="identification/roll_greybox.toml">roll_greybox.toml</a></p>']
+    return parts
 
 
 def _table(rows: list[list], header: list[str]) -> str:
@@ -196,15 +343,32 @@ def _table(rows: list[list], header: list[str]) -> str:
     return f"<table><tr>{head}</tr>{body}</table>"
 
 
-def write_report(out: str | Path) -> Path:
-    """Run the pipeline on the bundled models; returns the path of index.html."""
+def write_report(out: str | Path, data: str | Path | None = None, map_points: int = 61,
+                 progress: bool = False) -> Path:
+    """Run the pipeline on the bundled models (and, with ``data``, on a folder of measured logs);
+    ``map_points`` per axis of the holding-effort maps. Returns the path of index.html."""
+    from tqdm import tqdm
+
+    if map_points < 2:
+        raise RcmKinError("the effort maps need at least 2 points per axis")
+    if data is not None and not Path(data).is_dir():
+        raise RcmKinError(f"no data folder at {data}")
     out = output_folder(out)
+    bar = tqdm(total=7 if data is None else 8, desc="report", unit="step", disable=not progress)
+
+    def step(name):
+        bar.set_postfix_str(name)
+        bar.update()
+
     summaries = [model_summary(n) for n in ("psm", "mtm")]
     checks = kinematic_checks()
+    step("models checked")
     (out / "model_summary.json").write_text(json.dumps(summaries, indent=1))
     (out / "kinematic_checks.json").write_text(json.dumps(asdict(checks), indent=1))
 
     parts = ["<h1>rcm-kin report</h1>", "<p>All quantities SI (rad, m, kg, N m).</p>"]
+    parts += robots_section(out)
+    step("robot views")
     for s in summaries:
         parts.append(f"<h2>Model: {s['robot']}</h2><p>Loop closures: {', '.join(s['loops']) or 'none'}; "
                      f"total link mass {s['total_mass']:.3f} kg.</p>")
@@ -216,10 +380,27 @@ def write_report(out: str | Path) -> Path:
                         ["largest discrepancy", "value (SI)"]))
     parts.append('<p>Data: <a href="model_summary.json">model_summary.json</a>, '
                  '<a href="kinematic_checks.json">kinematic_checks.json</a></p>')
-    parts += gravity_section(out)
-    parts += schedule_section(out)
+    parts += gravity_section(out, map_points)
+    step("effort maps")
+    schedule, schedule_parts = schedule_section(out)
+    step("gain schedule")
+    parts += linear_models_section(out, schedule) + schedule_parts
+    step("linear models")
+    parts += tracking_section(out, schedule, _mtm_recording(data))
+    step("tracking experiments")
+    if data is not None:
+        parts += data_section(out, Path(data))
+        step("measured data")
     style = "<style>body{font-family:sans-serif;max-width:60em;margin:2em auto}td,th{padding:2px 8px}</style>"
     index = out / "index.html"
     index.write_text(f"<!doctype html><html><head><meta charset='utf-8'><title>rcm-kin report</title>{style}"
                      f"</head><body>{''.join(parts)}</body></html>\n")
+    step("index.html")
+    bar.close()
     return index
+
+
+def _mtm_recording(data) -> Path | None:
+    """The MTM recording of a data folder (``mtm_target_trajectory.csv``), if there is one."""
+    found = sorted(Path(data).glob("**/mtm_target_trajectory.csv")) if data is not None else []
+    return found[0] if found else None

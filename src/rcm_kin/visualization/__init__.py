@@ -1,0 +1,1 @@
+"""meshcat views of the robots: served live, or written as self-contained HTML pages."""

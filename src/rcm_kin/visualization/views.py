@@ -1,0 +1,95 @@
+"""meshcat views of a robot through Pinocchio's ``MeshcatVisualizer``: the URDF's primitive
+geometry placed by the open tree (the loop's passive joints solved from the actuated ones),
+frames of interest on demand, trajectory animations, and a trail of points coloured by a scalar.
+
+A view is served live (``meshcat.Visualizer()`` starts the meshcat server) or kept offline
+(:class:`rcm_kin.visualization.offline.OfflineWindow`) and written with :func:`write_html`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+import meshcat
+import meshcat.geometry as mg
+import numpy as np
+import pinocchio as pin
+from meshcat.animation import Animation
+from pinocchio.visualize import MeshcatVisualizer
+
+from rcm_kin.closure.reduced import tree_configuration
+from rcm_kin.errors import RcmKinError
+from rcm_kin.kinematics.fk import frame_placement
+from rcm_kin.visualization.offline import OfflineWindow
+
+
+def robot_view(robot, window=None, frames: tuple[str, ...] = ()) -> MeshcatVisualizer:
+    """A Pinocchio meshcat visualizer of ``robot`` (offline unless a ``window`` is given, e.g. a
+    live ``meshcat.Visualizer().window``), showing ``frames`` (names of the robot's frames of
+    interest) as axis triads."""
+    visual = pin.buildGeomFromUrdf(robot.tree, str(robot.description.urdf), pin.GeometryType.VISUAL)
+    viz = MeshcatVisualizer(robot.tree, pin.GeometryModel(), visual)
+    viz.initViewer(viewer=meshcat.Visualizer(window=window or OfflineWindow(robot.name)))
+    viz.loadViewerModel(rootNodeName=robot.name)
+    if frames:
+        unknown = [f for f in frames if not robot.tree.existFrame(f)]
+        if unknown:
+            raise RcmKinError(f"{robot.name} has no frame {unknown[0]} (see rcm-kin info {robot.name})")
+        viz.displayFrames(True, [robot.tree.getFrameId(f) for f in frames], axis_length=0.05, axis_width=3)
+    return viz
+
+
+def show(viz: MeshcatVisualizer, robot, q) -> None:
+    """Place the robot at actuated ``q`` (rad, m)."""
+    viz.display(tree_configuration(robot, robot.check_q(q, allow_short=True)))
+
+
+def animate(viz: MeshcatVisualizer, robot, Q: np.ndarray, period: float, every: int = 1) -> None:
+    """Record the actuated trajectory ``Q`` (N, nq) sampled every ``period`` s as a meshcat
+    animation (every ``every``-th sample), played in the page's controls."""
+    Q = np.atleast_2d(Q)
+    if not (period > 0 and every >= 1 and len(Q) >= 2):
+        raise RcmKinError("an animation needs at least 2 poses, a positive period and every >= 1")
+    fps = 1.0 / (period * every)
+    animation = Animation(default_framerate=fps)
+    live = viz.viewer
+    try:
+        for k, q in enumerate(Q[::every]):
+            with animation.at_frame(live, k) as frame:
+                viz.viewer = frame                 # the visualizer writes its transforms into the frame
+                show(viz, robot, q)
+    finally:
+        viz.viewer = live
+    live.set_animation(animation, play=False)
+
+
+def scalar_trail(viz: MeshcatVisualizer, name: str, points: np.ndarray, values: np.ndarray,
+                 cmap: str = "coolwarm", size: float = 0.004) -> tuple[float, float]:
+    """Points (N, 3) m in the base frame coloured by ``values`` (N,) through a matplotlib colour
+    map (symmetric about 0 when the values change sign). Returns the colour range."""
+    points, values = np.atleast_2d(points), np.asarray(values, dtype=float)
+    if points.shape[1:] != (3,) or len(points) != len(values) or not np.all(np.isfinite(values)):
+        raise RcmKinError("a trail needs N finite values for N points (x, y, z in m)")
+    low, high = float(values.min()), float(values.max())
+    if low < 0 < high:
+        low, high = -max(-low, high), max(-low, high)
+    span = high - low or 1.0
+    colours = matplotlib.colormaps[cmap]((values - low) / span)[:, :3]
+    viz.viewer[f"trails/{name}"].set_object(mg.PointCloud(points.T, colours.T, size=size))
+    return low, high
+
+
+def frame_path(robot, Q: np.ndarray, frame: str) -> np.ndarray:
+    """Positions (N, 3) m of ``frame`` along the actuated trajectory ``Q``."""
+    return np.array([frame_placement(robot, q, frame).translation for q in np.atleast_2d(Q)])
+
+
+def write_html(viz: MeshcatVisualizer, path: str | Path) -> Path:
+    """Write the view as one self-contained HTML page."""
+    path = Path(path)
+    try:
+        path.write_text(viz.viewer.static_html())
+    except OSError as exc:
+        raise RcmKinError(f"cannot write {path}: {exc.strerror}") from None
+    return path
