@@ -440,6 +440,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="rcm-kin", description=(
         "Models of the low-cost RCM surgical robot (PSM and MTM): kinematics, dynamics, control. "
         "Units: rad, m, N m, V unless --deg; PWM in counts with the hardware sign."),
+        epilog=("examples: rcm-kin fk psm 10 -5 0.08 --deg --json\n"
+                "          rcm-kin simulate psm --experiment sine --controller scheduled\n"
+                "          rcm-kin report --out report\n"
+                "every command: rcm-kin COMMAND --help (units and an example); --json for scripts"),
         formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     robots = ", ".join(robot_names())
