@@ -50,3 +50,67 @@ def mtm_frames(q) -> dict[str, np.ndarray]:
     T = T @ dh(q4 - np.pi / 2, 0, 0, -np.pi / 2) @ dh(q5 - np.pi / 2, 0, 0, -np.pi / 2)
     T = T @ dh(q6 + np.pi / 2, -MTM_L_IMU, 0, -np.pi / 2)
     return {"wrist_center": _in_base(MTM_BASE_R_DH0, wrist), "tool_tip": _in_base(MTM_BASE_R_DH0, T)}
+
+
+# da Vinci patient-side arm: the FK code of the AAU 2015 thesis (Appendix C.1.1), written out from
+# the digest's arrays with its two corrections (a10 = 0.520, ax9 = -2). Frames 1..13 in series,
+# jaws 14L and 14R both on frame 13. T_i = [Rot_i, (a_i, b_i, d_i)] [Rot_var_i, p_i].
+_DV_A = [0, 0.198, 0, 0.435, 0.057, 0.352, -0.052, 0, 0, 0.520, 0, 0.052, 0, 0, 0]
+_DV_B = [0, 0, 0.583, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]
+_DV_D = [0, 0.812, 0, -0.001, 0.198, -0.117, 0.161, 0, 0.186, 0, -0.104, 0, 0.177, 0.009, 0.009]
+_DV_AX = [3, 3, -3, -3, -1, 3, 1, -2, -2, -2, 3, 3, -1, -3, 3]
+_TILT = 0.1745
+
+
+def _rx(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _ry(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _rz(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+_DV_ROT = [np.eye(3), _rz(np.pi / 2) @ _rx(np.pi), _rz(np.pi / 2) @ _rx(-np.pi), np.eye(3), np.eye(3), np.eye(3),
+           np.eye(3), _ry(-_TILT), _ry(_TILT) @ _rx(np.pi), _rx(np.pi), np.eye(3), _rz(np.pi / 2) @ _rx(np.pi),
+           np.eye(3), _ry(np.pi / 2) @ _rx(np.pi / 2), _ry(np.pi / 2) @ _rx(np.pi / 2)]
+_DV_NAMES = ["elevation", "arm_yaw1", "arm_yaw2", "arm_yaw3", "arm_roll1", "rcm_base", "hand_roll", "hand_pitch",
+             "upper_bar", "instrument_holder", "instrument_slide", "instrument_roll", "instrument_pitch", "jaw_left",
+             "jaw_right"]
+
+
+def davinci_frames(q) -> dict[str, np.ndarray]:
+    """4x4 poses (base frame) of the 15 frames of Table C.1 for the 13 independent joint values
+    [d1, th2..th6, th7, th8, d11, th12, th13, th14L, th14R]; frames 8-10 all take th8."""
+    d1, t2, t3, t4, t5, t6, t7, t8, d11, t12, t13, t14l, t14r = q
+    state = [d1, t2, t3, t4, t5, t6, t7, t8, t8, t8, d11, t12, t13, t14l, t14r]
+    rot_about = {1: _rx, 2: _ry, 3: _rz}
+    out, T = {}, np.eye(4)
+    for i, (name, value) in enumerate(zip(_DV_NAMES, state)):
+        fixed = np.eye(4)
+        fixed[:3, :3] = _DV_ROT[i]
+        fixed[:3, 3] = [_DV_A[i], _DV_B[i], _DV_D[i]]
+        free = np.eye(4)
+        axis = abs(_DV_AX[i])
+        if i in (0, 10):                                   # prismatic joints move along |ax|
+            free[axis - 1, 3] = np.sign(_DV_AX[i]) * value
+        else:
+            free[:3, :3] = rot_about[axis](np.sign(_DV_AX[i]) * value)
+        parent = out["instrument_pitch"] if name in ("jaw_left", "jaw_right") else T
+        out[name] = parent @ fixed @ free
+        T = out[name]
+    return out
+
+
+def davinci_rcm_wrist(q_rcm_base_frame) -> np.ndarray:
+    """The digest's closed-form RCM geometry of the reduced chain, in the rcm_base frame:
+    wrist = c + (0.097 - d9) [sin th8, sin th7 cos th8, -cos th7 cos th8], c = (0.482, 0, 0.047)."""
+    t7, t8, d9 = q_rcm_base_frame
+    return np.array([0.482, 0.0, 0.047]) + (0.097 - d9) * np.array(
+        [np.sin(t8), np.sin(t7) * np.cos(t8), -np.cos(t7) * np.cos(t8)])

@@ -25,12 +25,12 @@ def run_json(capsys, *argv):
     return json.loads(out)
 
 
-@pytest.mark.parametrize("robot", ["psm", "mtm"])
-def test_info_contract(capsys, robot):
+@pytest.mark.parametrize("robot, n", [("psm", 7), ("mtm", 7), ("davinci", 13), ("davinci_rcm", 13)])
+def test_info_contract(capsys, robot, n):
     info = run_json(capsys, "info", robot)
     assert info["robot"] == robot
     assert info["gravity"] == [0.0, 0.0, -9.81]
-    assert len(info["actuated"]) == 7
+    assert len(info["actuated"]) == n
     for joint in info["joints"]:
         assert {"name", "type", "lower", "upper", "axis_world"} <= set(joint)
         assert joint["lower"] < joint["upper"]

@@ -20,10 +20,10 @@ REPO_URDF = Path(__file__).resolve().parents[1] / "urdf"
 
 
 def test_bundled_robots():
-    assert {"psm", "mtm"} <= set(robot_names())
+    assert {"psm", "mtm", "davinci", "davinci_rcm"} <= set(robot_names())
 
 
-@pytest.mark.parametrize("name", ["psm", "mtm"])
+@pytest.mark.parametrize("name", ["psm", "mtm", "davinci", "davinci_rcm"])
 def test_pinocchio_check(name):
     robot = load_robot(name)
     assert robot.tree.check(robot.tree.createData())
@@ -37,7 +37,7 @@ def test_urdf_files_match_their_generator():
     assert result.returncode == 0, result.stdout + result.stderr
 
 
-@pytest.mark.parametrize("name", ["psm", "mtm"])
+@pytest.mark.parametrize("name", ["psm", "mtm", "davinci", "davinci_rcm"])
 def test_yourdfpy_agrees_with_pinocchio(name):
     robot = load_robot(name)
     urdf = yourdfpy.URDF.load(str(urdf_dir() / f"{name}.urdf"), load_meshes=False)

@@ -33,9 +33,11 @@ def urdf_visuals(robot):
     return out
 
 
-@pytest.mark.parametrize("name", ["psm", "mtm"])
-def test_static_page_holds_the_robot_geometry(tmp_path, name, request):
-    robot = request.getfixturevalue(name)
+@pytest.mark.parametrize("name", ["psm", "mtm", "davinci"])
+def test_static_page_holds_the_robot_geometry(tmp_path, name):
+    from rcm_kin import load_robot
+
+    robot = load_robot(name)
     viz = robot_view(robot)
     show(viz, robot, np.zeros(robot.nq))
     text, commands = page_commands(write_html(viz, tmp_path / "view.html"))

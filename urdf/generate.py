@@ -1,6 +1,7 @@
-"""Write ``psm.urdf`` and ``mtm.urdf`` in this folder from the parameter tables below.
+"""Write ``psm.urdf``, ``mtm.urdf``, ``davinci.urdf`` and ``davinci_rcm.urdf`` in this folder
+from the parameter tables below.
 
-    python urdf/generate.py           # rewrite both files
+    python urdf/generate.py           # rewrite the files
     python urdf/generate.py --check   # exit 1 if the committed files differ from the tables
 
 Sources (as collected in the project's reference sheet): the osMDV design repository (DH
@@ -19,6 +20,13 @@ osMDV COG scripts (frame CS0 at the pitch pivot, x towards the RCM, z up) is thi
 shifted by 290.816 mm along -x. The roll axis is -x so that positive roll and pitch are those
 of the osMDV DH table.
 MTM base frame: the osMDV DH frame 0 (y up) turned by +90 deg about x, so z is up.
+
+da Vinci (first-generation patient-side arm "p4", AAU 2015 thesis, project digest): the chain of
+Table C.1 with the mimic parallelogram (``davinci``) and the reduced active-joints chain of
+Table C.7 with the hand joints at the RCM (``davinci_rcm``). Kinematics only: no source gives
+masses. Table C.1 values are those of its FK code with the digest's two corrections (a10 =
+0.520, frame 9 turning about -y). Setup-joint limits are in no source: +-pi (revolute) and
++-0.3 m (elevation) stand in.
 """
 
 from __future__ import annotations
@@ -80,6 +88,49 @@ MTM = dict(
     counterweight=(0.317, 72.5, 8.79),        # kg, mm, deg; balance M = m g l cos(q1 + phi)
     arm_limit=90.0, gimbal_limit=90.0, grip_range=(0.0, 60.0),  # no source: placeholders
 )
+
+
+# --------------------------------------------------------------------------------------------
+# da Vinci patient-side arm, Table C.1 (m, rad): per frame (name, parent, a, b, d, fixed
+# rotation as a product of (axis, angle), joint kind, actuation axis with sign (1 x, 2 y, 3 z),
+# limits). T_i = [R_fixed, (a, b, d)] [free motion about / along the actuation axis].
+# --------------------------------------------------------------------------------------------
+TILT = 0.1745   # rad (10 deg): the parallelogram base tilt of the FK code (0.288 in the table)
+DAVINCI = [
+    ("elevation", "base_link", 0.0, 0.0, 0.0, (), "prismatic", 3, (-0.3, 0.3)),
+    ("arm_yaw1", "elevation", 0.198, 0.0, 0.812, (("z", np.pi / 2), ("x", np.pi)), "revolute", 3, None),
+    ("arm_yaw2", "arm_yaw1", 0.0, 0.583, 0.0, (("z", np.pi / 2), ("x", -np.pi)), "revolute", -3, None),
+    ("arm_yaw3", "arm_yaw2", 0.435, 0.0, -0.001, (), "revolute", -3, None),
+    ("arm_roll1", "arm_yaw3", 0.057, 0.0, 0.198, (), "revolute", -1, None),
+    ("rcm_base", "arm_roll1", 0.352, 0.0, -0.117, (), "revolute", 3, None),          # arm_yaw4
+    ("hand_roll", "rcm_base", -0.052, 0.0, 0.161, (), "revolute", 1, (-np.pi / 2, np.pi / 2)),
+    ("hand_pitch", "hand_roll", 0.0, 0.0, 0.0, (("y", -TILT),), "revolute", -2, (-0.8, 1.0)),
+    ("upper_bar", "hand_pitch", 0.0, 0.0, 0.186, (("y", TILT), ("x", np.pi)), "revolute", -2, (-0.8, 1.0)),
+    ("instrument_holder", "upper_bar", 0.520, 0.0, 0.0, (("x", np.pi),), "revolute", -2, (-0.8, 1.0)),
+    ("instrument_slide", "instrument_holder", 0.0, 0.0, -0.104, (), "prismatic", 3, (-0.12, 0.12)),
+    ("instrument_roll", "instrument_slide", 0.052, 0.0, 0.0, (("z", np.pi / 2), ("x", np.pi)), "revolute", 3,
+     (-1.5 * np.pi, 1.5 * np.pi)),
+    ("instrument_pitch", "instrument_roll", 0.0, 0.0, 0.177, (), "revolute", -1, (-1.5, 1.5)),
+    ("jaw_left", "instrument_pitch", 0.0, 0.0, 0.009, (("y", np.pi / 2), ("x", np.pi / 2)), "revolute", -3, (-1.8, 1.8)),
+    ("jaw_right", "instrument_pitch", 0.0, 0.0, 0.009, (("y", np.pi / 2), ("x", np.pi / 2)), "revolute", 3, (-1.8, 1.8)),
+]
+# Table C.7 (reduced chain, URDF convention [Rz(yaw) Ry(pitch) Rx(roll), (a, b, d)] [Rz(q) or
+# Tz(q)]): (name, parent, a, b, d, roll, pitch, kind, limits)
+DAVINCI_RCM = [
+    ("elevation", "base_link", 0.0, 0.0, 0.998, 0.0, 0.0, "prismatic", (-0.3, 0.3)),
+    ("arm_yaw1", "elevation", 0.198, 0.0, 0.0, 0.0, 0.0, "revolute", None),
+    ("arm_yaw2", "arm_yaw1", 0.582, 0.0, 0.0, 0.0, 0.0, "revolute", None),
+    ("arm_yaw3", "arm_yaw2", 0.435, 0.0, 0.0, 0.0, 0.0, "revolute", None),
+    ("arm_roll1", "arm_yaw3", 0.0, 0.0, 0.0, 0.0, np.pi / 2, "revolute", None),
+    ("rcm_base", "arm_roll1", 0.0, 0.0, 0.412, 0.0, -np.pi / 2, "revolute", None),   # arm_yaw4
+    ("hand_roll", "rcm_base", 0.482, 0.0, 0.047, 0.0, np.pi / 2, "revolute", (-np.pi / 2, np.pi / 2)),
+    ("hand_pitch", "hand_roll", 0.0, 0.0, 0.0, np.pi / 2, 0.0, "revolute", (-0.8, 1.0)),
+    ("instrument_slide", "hand_pitch", 0.097, 0.0, 0.0, 0.0, -np.pi / 2, "prismatic", (-0.12, 0.12)),
+    ("instrument_roll", "instrument_slide", 0.0, 0.0, 0.0, 0.0, 0.0, "revolute", (-1.5 * np.pi, 1.5 * np.pi)),
+    ("instrument_pitch", "instrument_roll", 0.0, 0.0, 0.0, 0.0, np.pi / 2, "revolute", (-1.5, 1.5)),
+    ("jaw_left", "instrument_pitch", 0.009, 0.0, 0.0, -np.pi / 2, 0.0, "revolute", (-1.8, 1.8)),
+    ("jaw_right", "instrument_pitch", 0.009, 0.0, 0.0, -np.pi / 2, 0.0, "revolute", (-1.8, 1.8)),
+]
 
 
 # --------------------------------------------------------------------------------------------
@@ -471,7 +522,56 @@ def build_mtm() -> str:
     return write_urdf("mtm", comment, links, joints)
 
 
-OUTPUTS = {"psm.urdf": build_psm, "mtm.urdf": build_mtm}
+# --------------------------------------------------------------------------------------------
+# da Vinci
+# --------------------------------------------------------------------------------------------
+AXES = {1: (1.0, 0.0, 0.0), 2: (0.0, 1.0, 0.0), 3: (0.0, 0.0, 1.0)}
+ROT = {"x": rot_x, "y": rot_y, "z": rot_z}
+
+
+def _davinci(name: str, rows, comment: str) -> str:
+    """Joints named as in the thesis, links ``<joint>_link``; each link draws a bar to every
+    child's origin."""
+    link_name = lambda joint: joint if joint == "base_link" else f"{joint}_link"  # noqa: E731
+    links = {"base_link": Link("base_link", visuals=[Visual("box", (0.3, 0.3, 0.02), material="steel")])}
+    joints = []
+    for joint, parent, T, kind, axis, limits in rows:
+        links[joint] = Link(link_name(joint))
+        offset = T[:3, 3]
+        if np.linalg.norm(offset) > 1e-9:
+            links[parent].visuals.append(bar([0, 0, 0], offset, 0.02, 0.02,
+                                             "printed" if joint in ("upper_bar", "instrument_holder") else "aluminium"))
+        limits = limits if limits is not None else ((-np.pi, np.pi) if kind == "revolute" else (-0.3, 0.3))
+        joints.append(Joint(joint, kind, link_name(parent), link_name(joint), T, axis, limits))
+    links["jaw_right"].visuals.append(marker(0.004))
+    return write_urdf(name, comment, list(links.values()), joints)
+
+
+def build_davinci() -> str:
+    rows = []
+    for name, parent, a, b, d, fixed, kind, ax, limits in DAVINCI:
+        R = np.eye(3)
+        for axis, angle in fixed:
+            R = R @ ROT[axis](angle)
+        rows.append((name, parent, transform(R, (a, b, d)), kind, tuple(np.sign(ax) * np.array(AXES[abs(ax)])),
+                     limits))
+    return _davinci("davinci", rows, " First-generation da Vinci patient-side arm p4, Table C.1 chain with the mimic"
+                    " parallelogram (hand_pitch, upper_bar, instrument_holder turn together), from the AAU 2015"
+                    " thesis's tables as collected in the project digest; written by urdf/generate.py: do not"
+                    " edit by hand. Kinematics only (no source gives masses). ")
+
+
+def build_davinci_rcm() -> str:
+    rows = [(name, parent, transform(rot_z(0.0) @ rot_y(pitch) @ rot_x(roll), (a, b, d)), kind, (0.0, 0.0, 1.0),
+             limits) for name, parent, a, b, d, roll, pitch, kind, limits in DAVINCI_RCM]
+    return _davinci("davinci_rcm", rows, " First-generation da Vinci patient-side arm p4, the reduced chain of Table"
+                    " C.7: active joints only, hand_roll and hand_pitch at the remote centre of motion, the"
+                    " instrument shaft left out (the wrist sits 0.097 - slide from the RCM); written by"
+                    " urdf/generate.py: do not edit by hand. Kinematics only. ")
+
+
+OUTPUTS = {"psm.urdf": build_psm, "mtm.urdf": build_mtm, "davinci.urdf": build_davinci,
+           "davinci_rcm.urdf": build_davinci_rcm}
 
 
 def main(argv: list[str]) -> int:

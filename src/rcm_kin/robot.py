@@ -65,7 +65,9 @@ class Robot:
     def joint_kind(self, name: str) -> str:
         """'revolute' or 'prismatic'."""
         shortname = self.tree.joints[self.tree.getJointId(name)].shortname()
-        return "prismatic" if "Prismatic" in shortname else "revolute"
+        # Pinocchio: JointModelPX/PY/PZ (axis-aligned) or JointModelPrismaticUnaligned
+        prismatic = "Prismatic" in shortname or shortname in ("JointModelPX", "JointModelPY", "JointModelPZ")
+        return "prismatic" if prismatic else "revolute"
 
     def frame_id(self, name: str) -> int:
         if not self.reduced.existFrame(name):
