@@ -34,6 +34,9 @@ EPILOG_GREYBOX = ("example: rcm-kin greybox psm-sysid/roll-step --joint roll --o
 EPILOG_VIEW = ("examples: rcm-kin view psm --q 10 -5 0.08 --deg --html psm.html   (self-contained page)\n"
                "          rcm-kin view mtm --frames wrist_center tool_tip   (serves on localhost, prints the URL)\n"
                "          rcm-kin view psm --q 10 -5 0.08 --deg --png psm.png   (matplotlib drawing)")
+EPILOG_SAFETY = ("examples: rcm-kin safety simulate ellipsoid --json   (CBF blend on the 3-D no-go ellipsoid)\n"
+                 "          rcm-kin safety simulate psm --filter qp   (PSM teleoperation towards a forbidden region)\n"
+                 "          rcm-kin safety certify 3 --error-bound 0.007 --json   (SOS barrier certificate)")
 EPILOG_REPORT = ("examples: rcm-kin report --out report   (then open report/index.html)\n"
                  "          rcm-kin report --out report --data ../shared/data   (with the measured logs)")
 
@@ -424,6 +427,49 @@ def cmd_view(args) -> None:
         print("stopped")
 
 
+def cmd_safety_simulate(args) -> None:
+    from rcm_kin.safety.scenarios import run_scenario
+
+    options = {"kappa": args.kappa} if args.kappa is not None else {}
+    if args.trajectory:
+        if args.scenario != "psm":
+            raise RcmKinError("--trajectory is for the psm scenario")
+        options["trajectory"] = args.trajectory
+    run = run_scenario(args.scenario, args.filter, **options)
+    summary = run.summary()
+    payload = {"scenario": args.scenario, "filter": args.filter, **summary}
+    lines = [f"{args.scenario} with the {args.filter} filter: min margin {summary['min_margin']:+.4g} "
+             f"(-max B; >= 0 is safe), {summary['violations']} of {summary['samples']} samples unsafe"]
+    if "min_distance_mm" in summary:
+        lines.append(f"achieved shaft tip: at least {summary['min_distance_mm']:.3f} mm outside the ellipsoid; "
+                     f"filtered reference margin {summary['reference_min_margin']:+.4g}")
+    _emit(args, payload, "\n".join(lines))
+
+
+def cmd_safety_certify(args) -> None:
+    from rcm_kin.safety.sos import check_by_sampling, find_certificate, thesis_program
+
+    program = thesis_program(args.program, args.delta, args.error_bound, args.r_max, args.eps_bar)
+    certificate = find_certificate(program)
+    payload = {"program": args.program, "name": program.name, "feasible": certificate.feasible,
+               "solver_status": certificate.status,
+               "certificate": certificate.as_dict() if certificate.B else None}
+    lines = [f"program {args.program} ({program.name}): {'FEASIBLE' if certificate.feasible else 'no certificate'} "
+             f"(solver: {certificate.status})"]
+    if certificate.B:
+        check = check_by_sampling(certificate.B, program)
+        payload["sampling_check"] = vars(check)
+        def term(e, c):
+            factors = [v if k == 1 else f"{v}^{k}" for v, k in zip(program.variables, e) if k]
+            return " ".join([f"{c:+.6g}"] + factors)
+
+        terms = "  ".join(term(e, c) for e, c in sorted(certificate.B.items(), key=lambda t: -sum(t[0])))
+        lines += [f"B = {terms}",
+                  f"sampling check: max B on X0 {check.initial_max_B:+.3g}, min B on Xu {check.unsafe_min_B:+.3g}, "
+                  f"max L_f B on X {check.max_lie:+.3g} -> {'passed' if check.passed else 'FAILED'}"]
+    _emit(args, payload, "\n".join(lines))
+
+
 def cmd_report(args) -> None:
     from rcm_kin.report import write_report
 
@@ -622,6 +668,33 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--html", metavar="FILE", help="write a self-contained page instead of serving")
     p.add_argument("--png", metavar="FILE", help="write a matplotlib drawing instead of serving")
     p.set_defaults(func=cmd_view)
+
+    p = sub.add_parser("safety", help="CBF safety filter simulations and SOS barrier certificates",
+                       epilog=EPILOG_SAFETY, formatter_class=argparse.RawDescriptionHelpFormatter)
+    safety = p.add_subparsers(dest="safety_command", required=True, parser_class=_Parser)
+    s = safety.add_parser("simulate", help="a scenario of the safety thesis with the CBF filter", epilog=EPILOG_SAFETY,
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("scenario", choices=("ellipsoid", "slide", "heart", "psm"),
+                   help="ellipsoid: 3-D no-go ellipsoid (radii 30/60/30 mm); slide: workspace [-0.10, 0.05] m; "
+                        "heart: beating-heart fixture; psm: our PSM teleoperated towards a 1.5 mm no-go ellipsoid")
+    s.add_argument("--filter", choices=("blend", "qp", "none"), default="blend",
+                   help="blend: the thesis's sigma k0 + (1 - sigma) u; qp: CBF-QP (Clarabel); none (default blend)")
+    s.add_argument("--kappa", type=float, help="aggressiveness of k0 in m (default 1; psm 0.01)")
+    s.add_argument("--trajectory", help="psm: MTM recording CSV (default: the bundled figure-eight)")
+    s.add_argument("--json", action="store_true", help='{"min_margin", "violations", ...}')
+    s.set_defaults(func=cmd_safety_simulate)
+    s = safety.add_parser("certify", help="SOS barrier certificate of one of the thesis's programs 1-4",
+                          epilog=EPILOG_SAFETY, formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("program", choices=("1", "2", "3", "4"),
+                   help="1: slide first order, zero reference; 2: reference as a state; 3: first-order error "
+                        "state; 4: second-order error state")
+    s.add_argument("--delta", type=float, help="separation of the initial and unsafe sets in m (thesis: 0.001, "
+                                               "0.015, 0.004, 0.005)")
+    s.add_argument("--error-bound", type=float, help="programs 3-4: unsafe error beyond this in m (thesis 0.009, 0.008)")
+    s.add_argument("--r-max", type=float, help="program 2: largest reference in m (thesis 0.017)")
+    s.add_argument("--eps-bar", type=float, help="B on the unsafe set at least this (thesis 0.001, 0.1, 0.01, 0.05)")
+    s.add_argument("--json", action="store_true", help='{"feasible", "certificate", "sampling_check", ...}')
+    s.set_defaults(func=cmd_safety_certify)
 
     p = sub.add_parser("report", help="run the main job on the bundled models and write index.html",
                        epilog=EPILOG_REPORT)
