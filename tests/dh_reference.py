@@ -114,3 +114,23 @@ def davinci_rcm_wrist(q_rcm_base_frame) -> np.ndarray:
     t7, t8, d9 = q_rcm_base_frame
     return np.array([0.482, 0.0, 0.047]) + (0.097 - d9) * np.array(
         [np.sin(t8), np.sin(t7) * np.cos(t8), -np.cos(t7) * np.cos(t8)])
+
+
+# The thesis's DH code (Table C.5, Appendix C, digest Sec. 1.4): a second parameterisation of the
+# same arm, with the three values the digest flags (d1 1.0, d7 -0.045, tilt 10 deg).
+_DH_A = [0.198, 0.5820, 0.435, 0, 0, 0, 0, 0.1900, 0.515, 0.0400, 0, 0, 0.0095]
+_DH_D = [1.0, 0, 0, 0, 0.4122, 0.0474, -0.0450, 0, 0, 0, 0.282, 0, 0]
+_DH_ALPHA = [0, 0, 0, np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, np.pi, np.pi, np.pi / 2, 0, np.pi / 2, np.pi / 2]
+_DH_THETA = [0, 0, 0, np.pi / 2, np.pi, 0, -np.pi / 2, np.radians(10), np.radians(10) + np.pi / 2, 0, 0, 0, np.pi / 2]
+
+
+def davinci_dh_wrist(q) -> np.ndarray:
+    """Origin (m) of DH frame 12 of the DH code: on the instrument-pitch axis, for the same 13
+    joint values as :func:`davinci_frames` (the code's sign changes applied)."""
+    d1, t2, t3, t4, t5, t6, t7, t8, d11, t12, t13, _, _ = q
+    d_free = [d1, 0, 0, 0, 0, 0, 0, 0, 0, 0, -d11, 0, 0]
+    th_free = [0, -t2, -t3, -t4, -t5, t6, t7, t8, t8, t8, 0, t12, -t13]
+    T = np.eye(4)
+    for i in range(12):
+        T = T @ dh(th_free[i] + _DH_THETA[i], d_free[i] + _DH_D[i], _DH_A[i], _DH_ALPHA[i])
+    return T[:3, 3]

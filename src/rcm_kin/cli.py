@@ -97,6 +97,16 @@ def cmd_info(args) -> None:
         lines.append(f"{j['name']:18} {j['type']:9} {j['role']:8} {j['lower'] * scale:9.2f} {j['upper'] * scale:9.2f}"
                      f" {unit:3} {np.round(j['axis_world'], 4).tolist()}")
     lines.append(f"frames of interest: {', '.join(robot.description.frames)}")
+    rcm = robot.description.rcm
+    if rcm is not None:
+        from rcm_kin.kinematics.rcm_scatter import rcm_scatter
+
+        scatter = rcm_scatter(robot, rcm.shaft_frame, rcm.joints, rcm.base_frame)
+        payload["rcm"] = {"point": scatter.point.tolist(), "frame": rcm.base_frame or "base",
+                          "max_distance": scatter.max_distance, "rms_distance": scatter.rms_distance}
+        lines.append(f"remote centre of motion: {np.round(scatter.point, 6).tolist()} m in {rcm.base_frame or 'the base'};"
+                     f" shaft lines over {rcm.joints[0]} x {rcm.joints[1]} pass within "
+                     f"{scatter.max_distance * 1e3:.3g} mm (RMS {scatter.rms_distance * 1e3:.3g} mm)")
     _emit(args, payload, "\n".join(lines))
 
 

@@ -41,6 +41,17 @@ class PassiveRelation:
 
 
 @dataclass(frozen=True)
+class RcmDescription:
+    """Where a robot's remote centre of motion is to be checked: the instrument shaft is the z
+    axis of ``shaft_frame``; ``joints`` are the two joints that pivot it about the RCM; lines are
+    compared in ``base_frame`` (None: the robot's base)."""
+
+    shaft_frame: str
+    joints: tuple[str, str]
+    base_frame: str | None = None
+
+
+@dataclass(frozen=True)
 class RobotDescription:
     robot: str
     urdf: Path
@@ -49,6 +60,7 @@ class RobotDescription:
     loops: tuple[LoopClosure, ...]
     passive: tuple[PassiveRelation, ...]
     counterweights: tuple[str, ...] = ()   # links whose mass is a counterweight (removable)
+    rcm: RcmDescription | None = None
 
 
 def _vector3(entry: dict, key: str, where: str) -> np.ndarray:
@@ -106,7 +118,14 @@ def read_description(path: str | Path) -> RobotDescription:
         passive.append(PassiveRelation(_text(entry, "joint", at), _text(entry, "follows", at), multiplier, offset))
     if loops and not passive:
         raise RcmKinError(f"{where}: loops need [[passive]] relations for the reduced model")
+    rcm = None
+    if "rcm" in raw:
+        entry, at = raw["rcm"], f"{where}: [rcm]"
+        joints = entry.get("joints") if isinstance(entry, dict) else None
+        if not (isinstance(joints, list) and len(joints) == 2 and all(j in actuated for j in joints)):
+            raise RcmKinError(f"{at}: 'joints' must name two actuated joints")
+        rcm = RcmDescription(_text(entry, "shaft_frame", at), tuple(joints), entry.get("base_frame"))
     return RobotDescription(
         robot=_text(raw, "robot", where), urdf=urdf, actuated=tuple(actuated),
         frames=tuple(raw.get("frames", ())), loops=tuple(loops), passive=tuple(passive),
-        counterweights=tuple(raw.get("counterweights", ())))
+        counterweights=tuple(raw.get("counterweights", ())), rcm=rcm)
