@@ -19,11 +19,12 @@ def test_report_links_exist(tmp_path, capsys):
     index, links = linked_files(tmp_path)
     assert {"torque_map.png", "trend_curves.png", "torque_map.csv", "kinematic_checks.json", "stability_maps.png",
             "gain_schedule/gain_schedule.h", "linear_models.json", "psm.png", "psm_view.html", "mtm_view.html",
-            "tracking/sine_errors.png", "tracking/target_animation.html"} <= set(links)
+            "tracking/sine_errors.png", "tracking/target_animation.html", "davinci_view.html",
+            "safety_barriers.png"} <= set(links)
     for link in links:
         assert (tmp_path / link).stat().st_size > 0, link
     for section in ("Kinematic self-checks", "Counterweight design", "Gain schedule", "Linear models per grid pose",
-                    "Tracking experiments"):
+                    "Tracking experiments", "Safety", "SOS barrier certificates"):
         assert section in index
     assert "report" in capsys.readouterr().err                # progress on stderr
 

@@ -150,3 +150,20 @@ def greybox_figure(fit, path: str | Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def barrier_figure(runs: dict, path: str | Path) -> Path:
+    """Barrier value along each safety scenario (``{scenario: {filter: SafetyRun}}``): B <= 0 is
+    safe; the unfiltered run shows where the nominal controller would have gone."""
+    fig, axes = plt.subplots(1, len(runs), figsize=(4.2 * len(runs), 3.4), constrained_layout=True, squeeze=False)
+    for ax, (scenario, by_filter) in zip(axes[0], runs.items()):
+        for name, run in by_filter.items():
+            ax.plot(run.time, run.barrier, lw=1.0, label=name, ls=":" if name == "none" else "-")
+        ax.axhline(0.0, color="k", lw=0.8)
+        ax.set(title=scenario, xlabel="time (s)", ylabel="B (> 0 unsafe)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

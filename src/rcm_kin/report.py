@@ -11,6 +11,7 @@ data folder: calibration, identification per pose and the grey-box fit on the me
 from __future__ import annotations
 
 import html
+import importlib.util
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -26,7 +27,10 @@ from rcm_kin.kinematics.numeric_ik import solve_ik
 from rcm_kin.kinematics.psm_ik import rcm_geometry, shaft_tip_ik
 from rcm_kin.robot import load_robot
 
-VIEW_POSES = {"psm": [np.radians(10.0), np.radians(-15.0), 0.10], "mtm": [0.3, 0.2, 0.4]}
+VIEW_POSES = {"psm": [np.radians(10.0), np.radians(-15.0), 0.10], "mtm": [0.3, 0.2, 0.4],
+              "davinci": [0.0, 0.3, -0.4, 0.2, 0.0, 0.0, 0.2, 0.3, 0.05]}
+VIEW_FRAMES = {"psm": ("rcm", "shaft_tip", "tool_tip"), "mtm": ("wrist_center", "tool_tip"),
+               "davinci": ("rcm_base_link", "jaw_right_link")}
 
 
 @dataclass(frozen=True)
@@ -207,15 +211,15 @@ def robots_section(out: Path) -> list[str]:
     for name, q in VIEW_POSES.items():
         robot = load_robot(name)
         robot_drawing(robot, q, out / f"{name}.png", title=name.upper())
-        viz = robot_view(robot, frames=("rcm", "shaft_tip", "tool_tip") if name == "psm" else
-                         ("wrist_center", "tool_tip"))
+        viz = robot_view(robot, frames=VIEW_FRAMES[name])
         show(viz, robot, q)
         write_html(viz, out / f"{name}_view.html")
-        parts.append(f'<a href="{name}_view.html"><img src="{name}.png" width="380" '
+        parts.append(f'<a href="{name}_view.html"><img src="{name}.png" width="300" '
                      f'title="{name}: open the 3-D view"></a>')
     parts.append("</p><p>Click a picture for its meshcat page (self-contained; drag to turn, scroll to zoom). "
                  "PSM: parallelogram bars blue, brass counterweights, the RCM red; the frames rcm, shaft_tip "
-                 "and tool_tip are drawn.</p>")
+                 "and tool_tip are drawn. The third robot is the first-generation da Vinci patient-side arm of "
+                 "the safety thesis (its mimic parallelogram in blue).</p>")
     return parts
 
 
@@ -293,6 +297,52 @@ def tracking_section(out: Path, schedule, trajectory=None) -> list[str]:
                           "saturated (s)", "thesis max / mean"])] + parts
 
 
+def safety_section(out: Path) -> list[str]:
+    """The CBF scenarios with each filter, the RCM of the three RCM chains, and the SOS
+    certificates when cvxpy is installed."""
+    from rcm_kin.figures import barrier_figure
+    from rcm_kin.kinematics.rcm_scatter import rcm_scatter
+    from rcm_kin.safety.scenarios import FILTERS, run_scenario
+
+    runs, rows = {}, []
+    for scenario in ("ellipsoid", "slide", "heart", "psm"):
+        runs[scenario] = {}
+        for name in FILTERS:
+            run = run_scenario(scenario, name)
+            summary = run.summary()
+            runs[scenario][name] = run.reference if scenario == "psm" else run
+            rows.append([scenario, name, f"{summary['min_margin']:+.4g}", summary["violations"], summary["samples"]])
+    barrier_figure({k: v for k, v in runs.items() if k != "psm"}, out / "safety_barriers.png")
+    rcm_rows = []
+    for name in ("psm", "davinci", "davinci_rcm"):
+        rcm = load_robot(name).description.rcm
+        scatter = rcm_scatter(load_robot(name), rcm.shaft_frame, rcm.joints, rcm.base_frame)
+        rcm_rows.append([name, f"{np.round(scatter.point, 4).tolist()} ({rcm.base_frame or 'base'})",
+                         f"{scatter.max_distance * 1e3:.3g}", f"{scatter.rms_distance * 1e3:.3g}"])
+    parts = ["<h2>Safety (the da Vinci safety thesis)</h2>",
+             "<p>Control-barrier-function filters on a nominal controller; B &lt;= 0 is safe, the margin is "
+             "-max B over the run. For the PSM the margin is that of the 1.5 mm no-go ellipsoid at the shaft "
+             "tip the simulated 400 Hz loop reached (the filter guards it with 1 mm for the tracking error).</p>",
+             _table(rows, ["scenario", "filter", "min margin", "unsafe samples", "samples"]),
+             '<p><img src="safety_barriers.png" width="900"></p>',
+             "<h3>Remote centre of motion of each chain</h3>",
+             _table(rcm_rows, ["robot", "RCM point (m)", "shaft lines within (mm)", "RMS (mm)"])]
+    if importlib.util.find_spec("cvxpy") is None:
+        return parts + ["<p>SOS barrier certificates: install the optional extra (pip install 'rcm-kin[sos]') "
+                        "to add them here.</p>"]
+    from rcm_kin.safety.sos import PROGRAMS, check_by_sampling, find_certificate, thesis_program
+
+    cert_rows = []
+    for number in PROGRAMS:
+        program = thesis_program(number)
+        c = find_certificate(program)
+        check = check_by_sampling(c.B, program) if c.B else None
+        cert_rows.append([number, program.name, "yes" if c.feasible else "no", c.status,
+                          "passed" if check and check.passed else "-"])
+    return parts + ["<h3>SOS barrier certificates, the thesis's programs with its margins</h3>",
+                    _table(cert_rows, ["program", "closed loop", "certificate", "solver", "sampling check"])]
+
+
 def data_section(out: Path, data: Path) -> list[str]:
     """Calibration, identification per pose and the grey-box fit on a folder of measured logs."""
     from rcm_kin.calibration import calibrate, calibration_logs, holding_points
@@ -354,7 +404,7 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     if data is not None and not Path(data).is_dir():
         raise RcmKinError(f"no data folder at {data}")
     out = output_folder(out)
-    bar = tqdm(total=7 if data is None else 8, desc="report", unit="step", disable=not progress)
+    bar = tqdm(total=8 if data is None else 9, desc="report", unit="step", disable=not progress)
 
     def step(name):
         bar.set_postfix_str(name)
@@ -388,6 +438,8 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     step("linear models")
     parts += tracking_section(out, schedule, _mtm_recording(data))
     step("tracking experiments")
+    parts += safety_section(out)
+    step("safety")
     if data is not None:
         parts += data_section(out, Path(data))
         step("measured data")
