@@ -68,6 +68,14 @@ def _degrees_to_si(robot, q: np.ndarray) -> np.ndarray:
     return q
 
 
+def _joint_values(robot, args) -> np.ndarray:
+    """The actuated q typed on the command line (``args.q``, ``--deg``), padded with zeros."""
+    q = _floats(args.q, "joint values")
+    if args.deg:
+        q = _degrees_to_si(robot, q)
+    return robot.check_q(q, allow_short=True)
+
+
 def _emit(args, payload: dict, text: str) -> None:
     print(json.dumps(payload) if args.json else text)
 
@@ -114,10 +122,7 @@ def cmd_fk(args) -> None:
     from rcm_kin.kinematics.fk import forward_kinematics
 
     robot = load_robot(args.robot)
-    q = _floats(args.q, "joint values")
-    if args.deg:
-        q = _degrees_to_si(robot, q)
-    result = forward_kinematics(robot, robot.check_q(q, allow_short=True))
+    result = forward_kinematics(robot, _joint_values(robot, args))
     frames = {name: {"position": M.translation.tolist(), "rotation": M.rotation.tolist()}
               for name, M in result.frames.items()}
     payload = {"q": result.q.tolist(), "frames": frames, "closure_residual": result.closure_residual}
@@ -408,10 +413,7 @@ def cmd_view(args) -> None:
     from rcm_kin.visualization.views import robot_view, show, write_html
 
     robot = load_robot(args.robot)
-    q = _floats(args.q, "joint values")
-    if args.deg:
-        q = _degrees_to_si(robot, q)
-    q = robot.check_q(q, allow_short=True)
+    q = _joint_values(robot, args)
     frames = tuple(args.frames or ())
     if args.png:
         from rcm_kin.visualization.drawing import robot_drawing

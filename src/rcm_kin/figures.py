@@ -14,6 +14,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
+def _save(fig, path: str | Path) -> Path:
+    """Write the figure as a PNG (110 dpi) and free it."""
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0) -> Path:
     """PWM and voltage heat maps of roll and pitch over the roll x pitch grid at one insertion."""
     e = gmap.effort
@@ -30,9 +38,7 @@ def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0) -> Path:
             fig.colorbar(im, ax=ax)
     fig.suptitle(f"Holding effort at insertion {gmap.insertion[insertion_index] * 1e3:.0f} mm "
                  "(PWM: hardware sign, positive decreases the angle)")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(fig, path)
 
 
 def thesis_trend_curves(gmap, path: str | Path, insertion_index: int = 0, others=(-15.0, 0.0, 15.0)) -> Path:
@@ -49,9 +55,7 @@ def thesis_trend_curves(gmap, path: str | Path, insertion_index: int = 0, others
     for ax in (a, b):
         ax.grid(alpha=0.3)
         ax.legend()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(fig, path)
 
 
 def insertion_curves(gmap, path: str | Path) -> Path:
@@ -63,9 +67,7 @@ def insertion_curves(gmap, path: str | Path) -> Path:
         ax.set(xlabel="insertion (mm)", ylabel=f"{name} holding ({unit})",
                title=f"roll {gmap.roll_deg[0]:.0f}, pitch {gmap.pitch_deg[0]:.0f} deg")
         ax.grid(alpha=0.3)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(fig, path)
 
 
 def stability_maps(surveys: dict, path: str | Path) -> Path:
@@ -81,10 +83,7 @@ def stability_maps(surveys: dict, path: str | Path) -> Path:
                        vmin=-np.abs(decay).max(), vmax=np.abs(decay).max())
         ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=title)
         fig.colorbar(im, ax=ax, label="slowest decay rate (1/s)")
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def tracking_figure(result, path: str | Path, title: str = "") -> Path:
@@ -104,10 +103,7 @@ def tracking_figure(result, path: str | Path, title: str = "") -> Path:
         pwm.set_ylabel("PWM (counts)", color="tab:gray")
         for ax in (top, bottom):
             ax.grid(alpha=0.3)
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def error_comparison_figure(results: list, path: str | Path, title: str = "") -> Path:
@@ -119,10 +115,7 @@ def error_comparison_figure(results: list, path: str | Path, title: str = "") ->
         ax.set(xlabel="time (s)", ylabel=f"{axis} error (deg)", title=f"{title} {axis}".strip())
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def greybox_figure(fit, path: str | Path) -> Path:
@@ -146,10 +139,7 @@ def greybox_figure(fit, path: str | Path) -> Path:
         ax.grid(alpha=0.3)
     for ax in axes.flat[n:]:
         ax.axis("off")
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def barrier_figure(runs: dict, path: str | Path) -> Path:
@@ -163,7 +153,4 @@ def barrier_figure(runs: dict, path: str | Path) -> Path:
         ax.set(title=scenario, xlabel="time (s)", ylabel="B (> 0 unsafe)")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)

@@ -23,8 +23,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 
+from rcm_kin.control.stability import zero_order_hold
 from rcm_kin.errors import RcmKinError
 from rcm_kin.safety.barriers import Ellipsoid, MovingPlane, Slab, band_width
 from rcm_kin.safety.cbf import barrier_terms, blended_control, cbf_qp
@@ -55,21 +55,13 @@ class SafetyRun:
                 "filter_active_s": float(np.count_nonzero(self.sigma > 0) * (self.time[1] - self.time[0]))}
 
 
-def _zoh(A: np.ndarray, B: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    n, m = B.shape
-    M = np.zeros((n + m, n + m))
-    M[:n, :n], M[:n, n:] = A, B
-    E = expm(M * dt)
-    return E[:n, :n], E[:n, n:]
-
-
 def run_linear(name: str, A, B, barriers, eps: float, nominal, x0, duration: float, filter: str = "blend",
                kappa: float = 1.0, dt: float = 5e-4, u_max: float = U_MAX) -> SafetyRun:
     """Simulate ``xdot = A x + B u`` with ``u = filter(nominal(t, x))`` clamped to ``+-u_max``. The
     blend uses the first barrier of ``barriers`` (the thesis's single-barrier law)."""
     if filter not in FILTERS:
         raise RcmKinError(f"unknown filter '{filter}' (choose from {', '.join(FILTERS)})")
-    Ad, Bd = _zoh(A, B, dt)
+    Ad, Bd = zero_order_hold(A, B, dt)
     n_steps = int(round(duration / dt))
     x = np.asarray(x0, dtype=float)
     xs, us, bs, ss = [], [], [], []
