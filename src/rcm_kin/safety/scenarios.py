@@ -134,23 +134,23 @@ class PsmSafetyRun:
     shaft tip the 400 Hz loop achieved, both against the no-go ellipsoid."""
 
     reference: SafetyRun      # filtered shaft-tip target (state: position, m)
-    tip: np.ndarray           # (N, 3) m, shaft tip of the simulated robot (measured joints, FK)
+    tip: np.ndarray           # (N, 3) m, shaft tip of the simulated robot (true joints, FK)
     tip_barrier: np.ndarray   # (N,) B of the true ellipsoid at the achieved tip
     ellipsoid: Ellipsoid
     allowance: float          # m, added to the radii the filter guards (tracking error)
 
     def summary(self) -> dict:
-        out = {"min_margin": float(-self.tip_barrier.max()),
-               "violations": int(np.count_nonzero(self.tip_barrier > 0)),
-               "reference_min_margin": float(-self.reference.barrier.max()),
-               "min_distance_mm": float(1e3 * _ellipsoid_distance_lower_bound(self.ellipsoid, self.tip)),
-               "samples": int(self.tip_barrier.size)}
-        return out
+        return {"min_margin": float(-self.tip_barrier.max()),
+                "violations": int(np.count_nonzero(self.tip_barrier > 0)),
+                "reference_min_margin": float(-self.reference.barrier.max()),
+                "min_distance_mm": float(1e3 * _ellipsoid_distance_lower_bound(self.ellipsoid, self.tip)),
+                "samples": int(self.tip_barrier.size)}
 
 
 def _ellipsoid_distance_lower_bound(e: Ellipsoid, points: np.ndarray) -> float:
-    """A lower bound of the distance (m) from the points to the ellipsoid: the distance to the
-    sphere of its largest radius scaled by each point's normalised radius."""
+    """A lower bound of the distance (m) from the points outside to the ellipsoid: a point on the
+    copy scaled by its normalised radius ``rho`` is at least ``(rho - 1) r_min`` away (negative:
+    inside)."""
     rho = np.sqrt(np.sum(((points - e.center) / e.radii) ** 2, axis=1))
     return float(np.min((rho - 1) * np.min(e.radii)))
 
@@ -210,8 +210,8 @@ def psm_run(filter: str = "blend", trajectory=None, controller: str = "scheduled
     step, schedule = psm_plant_and_schedule(period=T)
     run = simulate(step, make_controller(controller, schedule), ref, settings)
     tip = []
-    for measured in run.measured:
-        q[:3] = np.radians(measured[0]), np.radians(measured[1]), measured[2]
+    for true in run.position:                 # the simulated robot's true joints, not the encoder counts
+        q[:3] = np.radians(true[0]), np.radians(true[1]), true[2]
         tip.append(frame_placement(psm, q, "shaft_tip").translation)
     tip = np.array(tip)
     return PsmSafetyRun(reference, tip, np.array([ellipsoid.value(p) for p in tip]), ellipsoid, allowance)

@@ -127,6 +127,17 @@ class BarrierProgram:
     q_half_degree: int            # multipliers q = z^T Q z with z of degree <= this
     scale: np.ndarray             # variables are divided by this (to the unit box)
 
+    def __post_init__(self):
+        for label, box in (("X", self.X), ("X0", self.X0), ("Xu", self.Xu)):
+            if not all(lo < hi for lo, hi in zip(box.lower, box.upper)):
+                raise RcmKinError(f"program '{self.name}': the set {label} is empty "
+                                  f"({list(box.lower)} to {list(box.upper)} m); check --delta, --error-bound, --r-max")
+            if not all(X_lo <= lo and hi <= X_hi for lo, hi, X_lo, X_hi in
+                       zip(box.lower, box.upper, self.X.lower, self.X.upper)):
+                raise RcmKinError(f"program '{self.name}': the set {label} leaves the considered set X")
+        if not self.eps_bar > 0:
+            raise RcmKinError(f"eps_bar must be positive, got {self.eps_bar}")
+
 
 TAU = 0.11                        # s, the slide's first-order time constant
 
