@@ -248,7 +248,7 @@ def tracking_section(out: Path, schedule, trajectory=None) -> list[str]:
     from rcm_kin.simulation.controllers import make_controller
     from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule
     from rcm_kin.simulation.firmware import FirmwareSettings
-    from rcm_kin.simulation.loop import simulate, tracking_metrics
+    from rcm_kin.simulation.loop import si_units, simulate, tracking_metrics
     from rcm_kin.visualization.views import animate, frame_path, robot_view, scalar_trail, write_html
 
     settings = FirmwareSettings()
@@ -275,7 +275,7 @@ def tracking_section(out: Path, schedule, trajectory=None) -> list[str]:
         # animation of the scheduled run, the tool-tip path coloured by the pitch PWM
         run = results[-1]
         Q = np.zeros((len(run.time), psm.nq))
-        Q[:, :3] = np.column_stack([np.radians(run.position[:, 0]), np.radians(run.position[:, 1]), run.position[:, 2]])
+        Q[:, :3] = si_units(run.position)
         viz = robot_view(psm)
         every = 8
         animate(viz, psm, Q, settings.period, every=every)

@@ -25,6 +25,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rcm_kin.calibration import write_parameters
+from rcm_kin.control.gain_schedule import DEG
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, with_joint
 from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
 from rcm_kin.errors import RcmKinError
@@ -33,7 +34,6 @@ from rcm_kin.identification.transfer_function import fit_percent
 from rcm_kin.robot import load_robot
 from rcm_kin.telemetry import load_telemetry
 
-DEG = 180.0 / np.pi
 PARAMETERS = ("extra_inertia", "viscous", "coulomb", "coulomb_velocity")
 LOWER = np.array([0.0, 0.0, 0.0, 0.002])
 UPPER = np.array([2.0, 10.0, 5.0, 0.05])

@@ -78,25 +78,27 @@ def _discrete(num, den, period: float):
     return Ad, Bd, Cd, Dd
 
 
-def simulate_transfer_function(num, den, u: np.ndarray, period: float) -> np.ndarray:
-    """Output of ``num/den`` for the input ``u`` (last axis: time) held over each ``period``
-    (exact ZOH), from rest."""
-    Ad, Bd, Cd, Dd = _discrete(num, den, period)
+def _forced_response(Ad, Bd, Cd, Dd, u: np.ndarray) -> np.ndarray:
     with warnings.catch_warnings():                  # leading numerator zeros of a strictly proper model
         warnings.simplefilter("ignore", signal.BadCoefficients)
         num_d, den_d = signal.ss2tf(Ad, Bd, Cd, Dd)
     return signal.lfilter(num_d[0], den_d, u, axis=-1)
 
 
-def free_responses(num, den, period: float, samples: int) -> np.ndarray:
+def _free_responses(Ad, Cd, samples: int) -> np.ndarray:
     """``(samples, n)``: the output ``C Ad^k e_i`` from each unit initial state (controller form)."""
-    Ad, _, Cd, _ = _discrete(num, den, period)
     out = np.empty((samples, Ad.shape[0]))
     power = np.eye(Ad.shape[0])
     for k in range(samples):
         out[k] = Cd[0] @ power
         power = Ad @ power
     return out
+
+
+def simulate_transfer_function(num, den, u: np.ndarray, period: float) -> np.ndarray:
+    """Output of ``num/den`` for the input ``u`` (last axis: time) held over each ``period``
+    (exact ZOH), from rest."""
+    return _forced_response(*_discrete(num, den, period), u)
 
 
 def _segments(u: np.ndarray, y: np.ndarray, segment: int | None):
@@ -108,9 +110,10 @@ def _segments(u: np.ndarray, y: np.ndarray, segment: int | None):
 
 def _simulate_segments(num, den, period, U, Y, free: bool):
     """Simulated output per segment; with ``free``, from the least-squares initial states."""
-    Yf = simulate_transfer_function(num, den, U, period)
+    Ad, Bd, Cd, Dd = _discrete(num, den, period)          # once per evaluation: the fit's hot path
+    Yf = _forced_response(Ad, Bd, Cd, Dd, U)
     if free:
-        Phi = free_responses(num, den, period, U.shape[1])
+        Phi = _free_responses(Ad, Cd, U.shape[1])
         X0, *_ = np.linalg.lstsq(Phi, (Y - Yf).T, rcond=None)
         Yf = Yf + (Phi @ X0).T
     return Yf

@@ -178,15 +178,14 @@ def psm_run(filter: str = "blend", trajectory=None, controller: str = "scheduled
     from rcm_kin.simulation.controllers import make_controller
     from rcm_kin.simulation.experiments import psm_plant_and_schedule
     from rcm_kin.simulation.firmware import FirmwareSettings
-    from rcm_kin.simulation.loop import simulate
+    from rcm_kin.simulation.loop import si_units, simulate
     from rcm_kin.simulation.references import Reference, load_mtm_trajectory
 
     psm = load_robot("psm")
     settings = FirmwareSettings()
     T = settings.period
     t_raw, displacement = load_mtm_trajectory(trajectory)
-    keep = np.r_[True, np.diff(t_raw) > 1e-6]
-    targets = CubicSpline(t_raw[keep], psm_targets(default_teleop_map(psm), displacement[keep]))
+    targets = CubicSpline(t_raw, psm_targets(default_teleop_map(psm), displacement))
     time = np.arange(int(round(t_raw[-1] / T)) + 1) * T
     path = targets(time)
     centre = path[np.argmin(path[:, 2])]
@@ -210,8 +209,8 @@ def psm_run(filter: str = "blend", trajectory=None, controller: str = "scheduled
     step, schedule = psm_plant_and_schedule(period=T)
     run = simulate(step, make_controller(controller, schedule), ref, settings)
     tip = []
-    for true in run.position:                 # the simulated robot's true joints, not the encoder counts
-        q[:3] = np.radians(true[0]), np.radians(true[1]), true[2]
+    for true in si_units(run.position):       # the simulated robot's true joints, not the encoder counts
+        q[:3] = true
         tip.append(frame_placement(psm, q, "shaft_tip").translation)
     tip = np.array(tip)
     return PsmSafetyRun(reference, tip, np.array([ellipsoid.value(p) for p in tip]), ellipsoid, allowance)

@@ -14,12 +14,13 @@ from typing import Callable
 import numpy as np
 from tqdm import tqdm
 
+from rcm_kin.control.gain_schedule import DEG
 from rcm_kin.errors import RcmKinError
 from rcm_kin.simulation.firmware import FirmwareSettings, encoder_reading, sent_pwm, velocity_estimate
 from rcm_kin.simulation.controllers import Sample
 from rcm_kin.simulation.references import Reference
 
-DEG = 180.0 / np.pi
+FIRMWARE_SCALE = np.array([DEG, DEG, 1.0])     # (rad, rad, m) -> (deg, deg, m)
 AXES = ("roll", "pitch")
 
 
@@ -43,8 +44,13 @@ class SimulationResult:
 
 
 def firmware_units(q: np.ndarray) -> np.ndarray:
-    """(rad, rad, m) -> (deg, deg, m)."""
-    return np.array([q[0] * DEG, q[1] * DEG, q[2]])
+    """(rad, rad, m) -> (deg, deg, m), for one pose (3,) or a stack (N, 3)."""
+    return np.asarray(q) * FIRMWARE_SCALE
+
+
+def si_units(q: np.ndarray) -> np.ndarray:
+    """(deg, deg, m) -> (rad, rad, m), for one pose (3,) or a stack (N, 3)."""
+    return np.asarray(q) / FIRMWARE_SCALE
 
 
 def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller, reference: Reference,
@@ -61,9 +67,8 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller, r
     rng = np.random.default_rng(seed)
     n_settle, n = int(round(settle / settings.period)), reference.time.size
     x = np.r_[reference.position[0], np.zeros(3)] if x0 is None else np.asarray(x0, dtype=float).copy()
-    ref_fw = np.array([firmware_units(p) for p in reference.position])
-    vel_fw = np.array([firmware_units(p) for p in reference.velocity])
-    acc_fw = np.array([firmware_units(p) for p in reference.acceleration])
+    ref_fw, vel_fw, acc_fw = (firmware_units(a) for a in (reference.position, reference.velocity,
+                                                            reference.acceleration))
     zero = np.zeros(3)
     previous = encoder_reading(settings, firmware_units(x[:3]), rng)
     filtered = np.zeros(3)

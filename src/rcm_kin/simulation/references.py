@@ -55,8 +55,8 @@ def step_reference(duration: float, period: float, step_deg=(10.0, 10.0), at: fl
 
 
 def load_mtm_trajectory(path: str | Path | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """``(time s from 0, displacement (N, 3) m)`` of an MTM recording (``unix_time,x,y,z``); the
-    default is the small trajectory bundled with the package."""
+    """``(time s from 0, displacement (N, 3) m)`` of an MTM recording (``unix_time,x,y,z``), repeated
+    time stamps dropped; the default is the small trajectory bundled with the package."""
     source = Path(path) if path is not None else resources.files("rcm_kin.simulation") / BUNDLED_TRAJECTORY
     try:
         with open(source, newline="") as fh:
@@ -73,15 +73,14 @@ def load_mtm_trajectory(path: str | Path | None = None) -> tuple[np.ndarray, np.
         raise RcmKinError(f"{source}: non-numeric or short rows") from None
     if len(data) < 4 or not np.all(np.isfinite(data)) or np.any(np.diff(data[:, 0]) < 0):
         raise RcmKinError(f"{source}: needs at least 4 finite samples with non-decreasing time")
-    return data[:, 0] - data[0, 0], data[:, 1:]
+    keep = np.r_[True, np.diff(data[:, 0]) > 1e-6]
+    return data[keep, 0] - data[0, 0], data[keep, 1:]
 
 
 def target_reference(psm, duration: float | None, period: float, trajectory: str | Path | None = None) -> Reference:
     """The target-following experiment: MTM displacements through the teleoperation map and the
     PSM IK, splined (C2) at the controller rate; ``duration`` None = the recording's length."""
     t_raw, displacement = load_mtm_trajectory(trajectory)
-    keep = np.r_[True, np.diff(t_raw) > 1e-6]               # repeated time stamps
-    t_raw, displacement = t_raw[keep], displacement[keep]
     joints = teleop_joint_targets(psm, default_teleop_map(psm), displacement)
     spline = CubicSpline(t_raw, joints, bc_type="clamped")
     t = _samples(duration if duration is not None else t_raw[-1], period)
