@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, schedule_gains
+from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, schedule_gains
 from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.errors import RcmKinError
@@ -59,11 +59,10 @@ def psm_plant_and_schedule(params: DriveParameters | None = None, period: float 
 
 def run_experiment(experiment: str, controller: str, duration: float | None = None,
                    params: DriveParameters | None = None, settings: FirmwareSettings | None = None,
-                   trajectory=None, schedule: GainSchedule | None = None, seed: int = 0,
-                   progress: bool = False) -> SimulationResult:
+                   trajectory=None, seed: int = 0, progress: bool = False) -> SimulationResult:
     """Simulate one thesis experiment with one controller (names as in the CLI)."""
     settings = settings or FirmwareSettings()
-    step, designed = psm_plant_and_schedule(params, settings.period)
+    step, schedule = psm_plant_and_schedule(params, settings.period)
     reference = experiment_reference(experiment, settings.period, duration, trajectory)
-    return simulate(step, make_controller(controller, schedule or designed), reference, settings, seed=seed,
+    return simulate(step, make_controller(controller, schedule), reference, settings, seed=seed,
                     progress=progress)

@@ -55,10 +55,9 @@ def si_units(q: np.ndarray) -> np.ndarray:
 
 def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller, reference: Reference,
              settings: FirmwareSettings | None = None, seed: int = 0, settle: float = 1.0,
-             x0: np.ndarray | None = None, progress: bool = False) -> SimulationResult:
+             progress: bool = False) -> SimulationResult:
     """Run ``controller`` on the plant ``step(x, u) -> x`` (one period, ``x = [q; v]`` SI with the
-    driven joints first) along ``reference``. ``x0`` defaults to rest at the first reference
-    pose. Deterministic for a given ``seed`` (which only drives the optional encoder noise)."""
+    driven joints first) along ``reference``, from rest at the first reference pose. Deterministic for a given ``seed`` (which only drives the optional encoder noise)."""
     settings = settings or FirmwareSettings()
     if reference.time.size < 2 or not np.isclose(reference.time[1] - reference.time[0], settings.period, rtol=1e-9):
         raise RcmKinError("the reference must be sampled at the controller period")
@@ -66,7 +65,7 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller, r
         raise RcmKinError(f"the settling time must be >= 0 s, got {settle}")
     rng = np.random.default_rng(seed)
     n_settle, n = int(round(settle / settings.period)), reference.time.size
-    x = np.r_[reference.position[0], np.zeros(3)] if x0 is None else np.asarray(x0, dtype=float).copy()
+    x = np.r_[reference.position[0], np.zeros(3)]
     ref_fw, vel_fw, acc_fw = (firmware_units(a) for a in (reference.position, reference.velocity,
                                                             reference.acceleration))
     zero = np.zeros(3)
