@@ -31,7 +31,11 @@ def _faces(geometry) -> list[np.ndarray]:
         bottom = np.column_stack([ring, np.full(16, -geometry.halfLength)])
         top = np.column_stack([ring, np.full(16, geometry.halfLength)])
         sides = [np.array([bottom[i], bottom[(i + 1) % 16], top[(i + 1) % 16], top[i]]) for i in range(16)]
-        return sides + [bottom, top]
+        # the caps as degenerate quads: every polygon has 4 vertices (mplot3d mishandles mixed counts)
+        caps = [np.array([ring_[i], ring_[(i + 1) % 16], centre, centre]) for ring_, centre in
+                ((bottom, [0.0, 0.0, -geometry.halfLength]), (top, [0.0, 0.0, geometry.halfLength]))
+                for i in range(16)]
+        return sides + caps
     if name == "Sphere":
         corners = _CUBE * 2 * geometry.radius
         return [corners[f] for f in _CUBE_FACES]
