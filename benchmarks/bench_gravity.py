@@ -14,7 +14,7 @@ from common import per_call, report
 
 from rcm_kin import load_robot
 from rcm_kin.dynamics.drive import load_drive_parameters
-from rcm_kin.gravity_map import gravity_map
+from rcm_kin.statics.gravity_map import gravity_map
 
 
 def main() -> None:

@@ -11,10 +11,10 @@ import pytest
 from rcm_kin import RcmKinError, load_robot
 from rcm_kin.cli import main
 from rcm_kin.closure import constrained
-from rcm_kin.counterweights import design_counterweights, workspace_grid
+from rcm_kin.statics.counterweights import design_counterweights, workspace_grid
 from rcm_kin.dynamics.drive import DriveParameters, JointDrive, drive_effort, load_drive_parameters, pwm_to_torque
 from rcm_kin.dynamics.gravity import gravity_batch, gravity_torque, point_mass_gravity_batch
-from rcm_kin.gravity_map import gravity_map, parse_range
+from rcm_kin.statics.gravity_map import gravity_map, parse_range
 
 TOL = 1e-9
 
@@ -203,7 +203,7 @@ def test_torque_map_cli(tmp_path, capsys):
 
 
 def test_calibration_reproduces_measured_holding(shared_data, tmp_path):
-    from rcm_kin.calibration import calibrate, calibration_logs, holding_points, predict_pwm
+    from rcm_kin.statics.calibration import calibrate, calibration_logs, holding_points, predict_pwm
 
     robot, shipped = load_robot("psm"), load_drive_parameters()
     points = holding_points(calibration_logs(shared_data))
@@ -222,7 +222,7 @@ def test_calibration_reproduces_measured_holding(shared_data, tmp_path):
 
 
 def test_calibration_generalises_to_logs_it_did_not_see(shared_data):
-    from rcm_kin.calibration import calibrate, calibration_logs, holding_points, predict_pwm
+    from rcm_kin.statics.calibration import calibrate, calibration_logs, holding_points, predict_pwm
 
     robot, base = load_robot("psm"), load_drive_parameters()
     points = holding_points(calibration_logs(shared_data))
@@ -235,7 +235,7 @@ def test_calibration_generalises_to_logs_it_did_not_see(shared_data):
 
 
 def test_not_a_telemetry_log(tmp_path, capsys):
-    from rcm_kin.telemetry import load_telemetry
+    from rcm_kin.identification.telemetry import load_telemetry
 
     (tmp_path / "x.csv").write_text("a,b\n1,2\n3,4\n")
     with pytest.raises(RcmKinError, match="not a telemetry log"):

@@ -199,7 +199,7 @@ def cmd_gravity(args) -> None:
 
 def cmd_torque_map(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.gravity_map import parse_range, write_gravity_maps
+    from rcm_kin.statics.gravity_map import parse_range, write_gravity_maps
 
     if args.robot != "psm":
         raise RcmKinError("torque maps are for the PSM's driven joints: rcm-kin torque-map psm ...")
@@ -212,7 +212,8 @@ def cmd_torque_map(args) -> None:
 
 
 def cmd_calibrate(args) -> None:
-    from rcm_kin.calibration import UNITS, calibrate, calibration_logs, holding_points, write_parameters
+    from rcm_kin.dynamics.drive import write_parameters
+    from rcm_kin.statics.calibration import UNITS, calibrate, calibration_logs, holding_points
     from rcm_kin.dynamics.drive import load_drive_parameters
 
     robot = load_robot("psm")
@@ -319,7 +320,7 @@ def cmd_simulate(args) -> None:
         f"{axis:5}  max {m.max_error_deg:.3f}  mean {m.mean_error_deg:.3f}  RMS {m.rms_error_deg:.3f} deg;  "
         f"PWM RMS {m.rms_pwm:.1f}, saturated {m.saturation_s:.3f} s" for axis, m in metrics.items()]
     if args.plot:
-        from rcm_kin.figures import tracking_figure
+        from rcm_kin.report.figures import tracking_figure
 
         path = tracking_figure(result, output_folder(args.plot) / f"{args.experiment}_{args.controller}.png",
                                title=f"{args.experiment}, {args.controller}:")

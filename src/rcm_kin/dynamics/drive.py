@@ -10,7 +10,7 @@ ratio ``gear_ratio`` (motor rad per joint rad, or per metre for the insertion), 
     pwm       = pwm_sign * voltage / volts_per_pwm    (counts; hardware sign)
 
 The parameters live in ``rcm_kin/parameters/psm_drive.toml`` (documented there); the shipped
-set is the calibrated one (:mod:`rcm_kin.calibration`).
+set is the calibrated one (:mod:`rcm_kin.statics.calibration`).
 """
 
 from __future__ import annotations
@@ -103,6 +103,21 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
             raise RcmKinError(f"{path}: gravity_offsets.{link} must be 3 numbers (kg m)")
         offsets[link] = v
     return DriveParameters(joints, offsets, str(path))
+
+
+def write_parameters(params: DriveParameters, path: str | Path, header: str = "") -> Path:
+    """Write a drive parameter file in the format :func:`load_drive_parameters` reads."""
+    lines = [f"# {line}" if line else "#" for line in header.splitlines()]
+    for joint, drive in params.joints.items():
+        lines += ["", f"[{joint}]"] + [f"{k} = {float(v)!r}" for k, v in vars(drive).items()]
+    lines += ["", "[gravity_offsets]"]
+    lines += [f"{link} = [{', '.join(repr(float(x)) for x in h)}]" for link, h in params.gravity_offsets.items()]
+    path = Path(path)
+    try:
+        path.write_text("\n".join(lines) + "\n")
+    except OSError as exc:
+        raise RcmKinError(f"cannot write the parameter file {path}: {exc.strerror}") from None
+    return path
 
 
 def with_joint(params: DriveParameters, joint: str, **changes) -> DriveParameters:

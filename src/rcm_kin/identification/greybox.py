@@ -24,7 +24,7 @@ import casadi as ca
 import numpy as np
 from scipy.optimize import least_squares
 
-from rcm_kin.calibration import write_parameters
+from rcm_kin.dynamics.drive import write_parameters
 from rcm_kin.control.gain_schedule import DEG
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, with_joint
 from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
@@ -32,7 +32,7 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.records import Record, step_record
 from rcm_kin.identification.transfer_function import fit_percent
 from rcm_kin.robot import load_robot
-from rcm_kin.telemetry import load_telemetry
+from rcm_kin.identification.telemetry import load_telemetry
 
 PARAMETERS = ("extra_inertia", "viscous", "coulomb", "coulomb_velocity")
 LOWER = np.array([0.0, 0.0, 0.0, 0.002])

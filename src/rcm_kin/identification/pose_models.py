@@ -21,7 +21,7 @@ from rcm_kin.dynamics.state_space import DrivenDynamics
 from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.records import Record, operating_point, prbs_record, step_record
 from rcm_kin.identification.transfer_function import TransferFunctionFit, fit_transfer_function
-from rcm_kin.telemetry import load_telemetry
+from rcm_kin.identification.telemetry import load_telemetry
 
 AXIS = {"roll": 0, "pitch": 1}
 DEFAULT_ORDER = {"step": 2, "prbs": 3}

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from rcm_kin.errors import RcmKinError
-from rcm_kin.telemetry import TelemetryLog, step_index
+from rcm_kin.identification.telemetry import TelemetryLog, step_index
 
 METHODS = ("step", "prbs")
 

@@ -76,7 +76,7 @@ def write_gravity_maps(robot, drive: DriveParameters, roll_deg, pitch_deg, inser
                        progress: bool = False) -> tuple[GravityMap, list[Path]]:
     """The roll x pitch map at one insertion (m) and an insertion sweep at roll = pitch = 0, as
     CSV and figures in folder ``out``: torque_map.csv/.png, trend_curves.png, insertion_map.csv/.png."""
-    from rcm_kin.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
+    from rcm_kin.report.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
 
     gmap = gravity_map(robot, drive, roll_deg, pitch_deg, [insertion], progress=progress)
     i = robot.actuated.index("insertion")

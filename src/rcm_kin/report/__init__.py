@@ -93,9 +93,9 @@ def model_summary(name: str) -> dict:
 
 def gravity_section(out: Path, n: int = 61) -> list[str]:
     """Holding-effort maps (CSV, PNG), trend curves and the counterweight design."""
-    from rcm_kin.counterweights import design_counterweights, workspace_grid
+    from rcm_kin.statics.counterweights import design_counterweights, workspace_grid
     from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
-    from rcm_kin.gravity_map import write_gravity_maps
+    from rcm_kin.statics.gravity_map import write_gravity_maps
 
     drive = load_drive_parameters()
     grid = np.linspace(-30, 30, n)
@@ -139,7 +139,7 @@ def schedule_section(out: Path) -> tuple:
     from rcm_kin.control.firmware_export import write_gain_schedule
     from rcm_kin.control.thesis_comparison import THESIS_K_PITCH, THESIS_K_ROLL, compare_with_thesis
     from rcm_kin.dynamics.state_space import driven_dynamics
-    from rcm_kin.figures import stability_maps
+    from rcm_kin.report.figures import stability_maps
 
     model = driven_dynamics(load_robot("psm"), coulomb=False)
     c = compare_with_thesis(model)
@@ -244,7 +244,7 @@ def linear_models_section(out: Path, schedule) -> list[str]:
 
 def tracking_section(out: Path, schedule, trajectory=None) -> list[str]:
     """The thesis's sinusoid and target following: P against the scheduled controllers."""
-    from rcm_kin.figures import error_comparison_figure, tracking_figure
+    from rcm_kin.report.figures import error_comparison_figure, tracking_figure
     from rcm_kin.simulation.controllers import make_controller
     from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule
     from rcm_kin.simulation.firmware import FirmwareSettings
@@ -300,7 +300,7 @@ def tracking_section(out: Path, schedule, trajectory=None) -> list[str]:
 def safety_section(out: Path) -> list[str]:
     """The CBF scenarios with each filter, the RCM of the three RCM chains, and the SOS
     certificates when cvxpy is installed."""
-    from rcm_kin.figures import barrier_figure
+    from rcm_kin.report.figures import barrier_figure
     from rcm_kin.kinematics.rcm_scatter import rcm_scatter
     from rcm_kin.safety.scenarios import FILTERS, run_scenario
 
@@ -345,10 +345,10 @@ def safety_section(out: Path) -> list[str]:
 
 def data_section(out: Path, data: Path) -> list[str]:
     """Calibration, identification per pose and the grey-box fit on a folder of measured logs."""
-    from rcm_kin.calibration import calibrate, calibration_logs, holding_points
+    from rcm_kin.statics.calibration import calibrate, calibration_logs, holding_points
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.dynamics.state_space import driven_dynamics
-    from rcm_kin.figures import greybox_figure
+    from rcm_kin.report.figures import greybox_figure
     from rcm_kin.identification.greybox import fit_greybox, step_logs, write_greybox_parameters
     from rcm_kin.identification.pose_models import identify_folder, pose_table_rows, write_pose_table
 

@@ -34,7 +34,7 @@ from scipy.optimize import least_squares
 from rcm_kin.dynamics.drive import DriveParameters, drive_effort, with_joint
 from rcm_kin.dynamics.gravity import gravity_batch
 from rcm_kin.errors import RcmKinError
-from rcm_kin.telemetry import TelemetryLog, load_telemetry, step_index
+from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry, step_index
 
 HOLD_INSERTION = 0.080     # m, assumed for every calibration pose
 HOLD_WINDOW = 0.25         # s before the step
@@ -136,21 +136,6 @@ def calibrate(robot, base: DriveParameters, points) -> CalibrationResult:
     res = predicted - measured
     return CalibrationResult(params, PARAMETERS, values, np.sqrt(np.diag(cov)), points, predicted,
                              np.sqrt(np.mean(res**2, axis=0)), np.max(np.abs(res), axis=0))
-
-
-def write_parameters(params: DriveParameters, path: str | Path, header: str = "") -> Path:
-    """Write a drive parameter file in the format of ``parameters/psm_drive.toml``."""
-    lines = [f"# {line}" if line else "#" for line in header.splitlines()]
-    for joint, drive in params.joints.items():
-        lines += ["", f"[{joint}]"] + [f"{k} = {float(v)!r}" for k, v in vars(drive).items()]
-    lines += ["", "[gravity_offsets]"]
-    lines += [f"{link} = [{', '.join(repr(float(x)) for x in h)}]" for link, h in params.gravity_offsets.items()]
-    path = Path(path)
-    try:
-        path.write_text("\n".join(lines) + "\n")
-    except OSError as exc:
-        raise RcmKinError(f"cannot write the parameter file {path}: {exc.strerror}") from None
-    return path
 
 
 def calibration_logs(folder: str | Path) -> list[Path]:
