@@ -15,6 +15,7 @@ import csv
 from dataclasses import replace
 from pathlib import Path
 
+from rcm_kin.control.thesis_reference import SINE_TRACKING_ERROR_DEG
 from rcm_kin.dynamics.drive import load_drive_parameters
 from rcm_kin.report.figures import error_comparison_figure, greybox_figure, tracking_figure
 from rcm_kin.identification.greybox import fit_greybox, step_logs, write_greybox_parameters
@@ -23,9 +24,6 @@ from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_s
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import simulate, tracking_metrics
 
-# Thesis Sec. 5.2.1, sinusoid: (max, mean) absolute error in degrees, measured on the robot.
-THESIS_SINE = {"p": {"roll": (1.17, 0.62), "pitch": (2.31, 1.52)},
-               "scheduled": {"roll": (0.41, 0.21), "pitch": (0.35, 0.12)}}
 FIRMWARE_VELOCITY = "scheduled, firmware v"    # the thesis law: Kd on the measured velocity
 
 
@@ -37,17 +35,18 @@ def controllers(schedule) -> list:
 
 def run_all(params, trajectory, label: str, out: Path) -> list[dict]:
     settings = FirmwareSettings()
-    step, schedule = psm_plant_and_schedule(params, settings.period)
+    plant, schedule = psm_plant_and_schedule(params, settings.period)
     rows = []
     for experiment in ("sine", "target"):
         reference = experiment_reference(experiment, settings.period, trajectory=trajectory)
-        results = [simulate(step, c, reference, settings) for c in controllers(schedule)]
+        results = [simulate(plant.step, c, reference, settings, initial=plant.initial) for c in controllers(schedule)]
         for r in results:
             tag = r.controller.replace(" ", "_").replace(",", "")
             tracking_figure(r, out / f"{label}_{experiment}_{tag}.png", title=f"{experiment}, {r.controller}:")
             settled = tracking_metrics(r, skip=0.5)
             for axis, m in tracking_metrics(r).items():
-                thesis = THESIS_SINE.get(r.controller, {}).get(axis) if experiment == "sine" else None
+                # thesis Sec. 5.2.1, sinusoid: (max, mean) absolute error (deg), measured on the robot
+                thesis = SINE_TRACKING_ERROR_DEG.get((r.controller, axis)) if experiment == "sine" else None
                 rows.append({"parameters": label, "experiment": experiment, "controller": r.controller,
                              "axis": axis, **{k: round(v, 4) for k, v in vars(m).items()},
                              "max_error_after_0.5s": round(settled[axis].max_error_deg, 4),

@@ -13,18 +13,19 @@ import time
 import numpy as np
 from common import per_call, report
 
+from rcm_kin.hardware import FIRMWARE_PERIOD, PWM_LIMIT
 from rcm_kin.simulation.controllers import CONTROLLERS, Sample, make_controller
 from rcm_kin.simulation.experiments import psm_plant_and_schedule, run_experiment
 
 
 def main() -> None:
-    step, schedule = psm_plant_and_schedule()
-    x, u = np.array([0.1, -0.1, 0.08, 0.2, -0.1, 0.0]), np.array([-20.0, -80.0, 5.0])
+    plant, schedule = psm_plant_and_schedule()
+    x, u = plant.initial(np.array([0.1, -0.1, 0.08])), np.array([-20.0, -80.0, 5.0])
     sample = Sample(np.array([5.0, -5.0, 0.08]), np.array([1.0, 2.0, 0.0]), np.array([6.0, -4.0, 0.08]),
-                    np.zeros(3), np.zeros(3), 1 / 400, np.array([100.0, 150.0, 100.0]))
+                    np.zeros(3), np.zeros(3), FIRMWARE_PERIOD, PWM_LIMIT)
     scheduled = make_controller("scheduled-gravity", schedule)
     memory = scheduled.initial_memory()
-    report([("plant: one 2.5 ms period (RK4 x4, CasADi)", per_call(lambda: step(x, u), 2000)),
+    report([("plant: one 2.5 ms period (RK4 x4, CasADi)", per_call(lambda: plant.step(x, u), 2000)),
             ("controller: scheduled-gravity, one tick", per_call(lambda: scheduled.command(memory, sample), 2000))])
     duration = 6.0
     for name in CONTROLLERS:

@@ -113,6 +113,24 @@ def test_shipped_drive_parameters_load():
     assert params["roll"].pwm_sign == -1.0 and params["pitch"].pwm_sign == -1.0
 
 
+def test_pwm_limits_are_the_firmwares_and_old_files_with_them_still_load(tmp_path):
+    """The firmware's saturation lives in rcm_kin.hardware: a loaded set carries it, a written
+    file leaves it out, and an older file that still has the key loads when it agrees."""
+    from rcm_kin.dynamics.drive import DEFAULT_PARAMETERS, write_parameters
+    from rcm_kin.hardware import PWM_LIMIT
+
+    params = load_drive_parameters()
+    assert [params[j].pwm_limit for j in ("roll", "pitch", "insertion")] == PWM_LIMIT.tolist()
+    assert "pwm_limit" not in write_parameters(params, tmp_path / "new.toml").read_text()
+    text = DEFAULT_PARAMETERS.read_text()
+    old = text.replace("pwm_sign = -1.0\n", "pwm_sign = -1.0\npwm_limit = 100.0\n", 1)
+    (tmp_path / "old.toml").write_text(old.replace("[pitch]\n", "[pitch]\npwm_limit = 150.0\n"))
+    assert load_drive_parameters(tmp_path / "old.toml").joints == params.joints
+    (tmp_path / "other.toml").write_text(old.replace("pwm_limit = 100.0", "pwm_limit = 120.0"))
+    with pytest.raises(RcmKinError, match="differs from the firmware"):
+        load_drive_parameters(tmp_path / "other.toml")
+
+
 def test_bad_parameter_file(tmp_path):
     (tmp_path / "bad.toml").write_text("[roll]\ngear_ratio = 20\n")
     with pytest.raises(RcmKinError, match=r"\[roll\] needs"):

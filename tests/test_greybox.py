@@ -13,7 +13,7 @@ from rcm_kin.dynamics.drive import load_drive_parameters, with_joint
 from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
 from rcm_kin.identification.greybox import fit_greybox, step_logs
 
-DEG = 180.0 / np.pi
+DEG_PER_RAD = 180.0 / np.pi   # the logs hold degrees
 TRUE = {"extra_inertia": 0.12, "viscous": 0.4, "coulomb": 0.6, "coulomb_velocity": 0.01}
 HEADER = ["time", "roll_position", "roll_velocity", "pitch_position", "pitch_velocity"]
 
@@ -23,7 +23,7 @@ def synthetic_step_log(path, psm, params, roll_deg, pitch_deg, du, period=0.002,
     with the true parameters: an independent route to the data the fit sees."""
     truth = with_joint(params, "roll", **TRUE)
     model = driven_dynamics(psm, truth)
-    pose = np.array([roll_deg / DEG, pitch_deg / DEG, 0.08])
+    pose = np.array([roll_deg / DEG_PER_RAD, pitch_deg / DEG_PER_RAD, 0.08])
     u_hold = holding_pwm(model, pose)[0]
     d = model.drive
 
@@ -38,7 +38,7 @@ def synthetic_step_log(path, psm, params, roll_deg, pitch_deg, du, period=0.002,
     step_at = 50
     sol = solve_ivp(rhs, (0, t[-1] - t[step_at]), [pose[0], 0.0], t_eval=t[step_at:] - t[step_at],
                     method="Radau", rtol=1e-10, atol=1e-12)
-    roll = np.r_[np.full(step_at, pose[0]), sol.y[0]] * DEG
+    roll = np.r_[np.full(step_at, pose[0]), sol.y[0]] * DEG_PER_RAD
     pwm = np.r_[np.full(step_at, u_hold), np.full(samples - step_at, u_hold + du)]
     rows = zip(t, roll, pwm, np.full(samples, pitch_deg), np.zeros(samples))
     path.write_text(",".join(HEADER) + "\n" + "\n".join(",".join(repr(float(v)) for v in r) for r in rows) + "\n")

@@ -10,7 +10,6 @@ from scipy import signal
 
 from rcm_kin import RcmKinError
 from rcm_kin.cli import main
-from rcm_kin.control.gain_schedule import DEG
 from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.identification.pose_models import identify_folder, identify_log, physics_axis
 from rcm_kin.identification.records import operating_point, prbs, step_record
@@ -130,14 +129,14 @@ def test_physics_dc_gain_is_input_gain_over_gravity_stiffness(psm):
     central differences of the model's gravity (a second route, not the AD linearisation)."""
     model = driven_dynamics(psm, coulomb=False)
     for roll, pitch in ((0.0, 0.0), (-15.0, 10.0)):
-        q = np.array([roll / DEG, pitch / DEG, 0.08])
+        q = np.array([np.radians(roll), np.radians(pitch), 0.08])
         h = 1e-6
         for axis, joint in ((0, "roll"), (1, "pitch")):
             dq = np.zeros(3)
             dq[axis] = h
             # other joints held: the single-axis slope of g along this joint
             slope = (np.array(model.gravity(q + dq)) - np.array(model.gravity(q - dq))).ravel()[axis] / (2 * h)
-            expected = model.drive.input_gain[axis] / slope * DEG
+            expected = np.degrees(model.drive.input_gain[axis] / slope)
             assert physics_axis(model, joint, roll, pitch).dc_gain == pytest.approx(expected, rel=1e-6)
 
 

@@ -126,3 +126,10 @@ def test_safety_cli_contracts(capsys):
     assert out["sampling_check"]["passed"] is True
     assert main(["safety", "simulate", "slide", "--trajectory", "x.csv"]) == 2
     assert capsys.readouterr().err.startswith("error:")
+
+
+def test_every_barrier_is_a_barrier():
+    from rcm_kin.safety.barriers import Barrier
+
+    for barrier in (Ellipsoid(np.zeros(3), np.ones(3)), Slab(0, -1.0, 1.0), MovingPlane(0, 1)):
+        assert isinstance(barrier, Barrier)

@@ -18,7 +18,7 @@ from rcm_kin.kinematics.teleop import default_teleop_map, psm_targets
 from rcm_kin.simulation.controllers import PController, PIDController, make_controller
 from rcm_kin.simulation.experiments import run_experiment
 from rcm_kin.simulation.firmware import FirmwareSettings
-from rcm_kin.simulation.loop import DEG, simulate, tracking_metrics
+from rcm_kin.simulation.loop import simulate, tracking_metrics
 from rcm_kin.simulation.plant import period_map
 from rcm_kin.simulation.references import load_mtm_trajectory, sine_reference, step_reference, target_reference
 
@@ -38,7 +38,7 @@ def as_step(F: ca.Function):
 
 def test_sampled_p_loop_on_integrators_is_the_geometric_sequence():
     """y' = b u under u = -Kp (r - y) every T with the input held: the error after the step is
-    e_k = e_0 (1 - |b| T Kp DEG)^k exactly, with the step seen at the first tick at or after 0.5 s."""
+    e_k = e_0 (1 - |b| T Kp 180/pi)^k exactly, with the step seen at the first tick at or after 0.5 s."""
     b = np.array([-0.05, -0.02, 1e-4])                   # rad (m) per s per count, hardware signs
     F = period_map(linear_forward(b), T)
     ref = step_reference(1.0, T, step_deg=(2.0, -3.0), at=0.5)
@@ -46,7 +46,7 @@ def test_sampled_p_loop_on_integrators_is_the_geometric_sequence():
     k0 = int(np.argmax(ref.time >= 0.5))
     k = np.arange(ref.time.size - k0)
     for i, (kp, step) in enumerate(zip((35.0, 60.0), (2.0, -3.0))):
-        factor = 1.0 - abs(b[i]) * T * kp * DEG
+        factor = 1.0 - abs(b[i]) * T * kp * np.degrees(1.0)
         np.testing.assert_allclose(result.error[k0:, i], step * factor**k, rtol=0, atol=1e-12)
         np.testing.assert_allclose(result.error[:k0, i], 0.0, atol=1e-15)
 
@@ -215,3 +215,12 @@ def test_simulate_cli_errors_are_one_line(capsys, argv, message):
     assert main(["simulate", "psm", *argv]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error:") and message in err and err.count("\n") == 1
+
+
+def test_every_controller_is_a_controller(psm):
+    from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, schedule_gains
+    from rcm_kin.simulation.controllers import CONTROLLERS, Controller
+
+    schedule = schedule_gains(driven_dynamics(psm, coulomb=False), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
+    for name in CONTROLLERS:
+        assert isinstance(make_controller(name, schedule), Controller)

@@ -6,7 +6,8 @@ from the parameter tables below.
 
 Sources (as collected in the project's reference sheet): the osMDV design repository (DH
 tables, CAD masses and centres of gravity of the planar COG scripts, counterweight fits) and
-a SolidWorks export of the MTM. Lengths here are in mm and degrees, converted to SI on output.
+a SolidWorks export of the MTM. Lengths here are in mm and degrees, converted to SI on output;
+the PSM's counterweights as built come in SI from ``rcm_kin.hardware`` (their one home).
 
 ESTIMATED, stated once for every body: no inertia tensor exists in any source. Each body's
 rotational inertia is that of a solid box of the stated size carrying the body's mass about
@@ -38,9 +39,11 @@ from pathlib import Path
 
 import numpy as np
 
+from rcm_kin.hardware import DPM_COUNTERWEIGHT, MAIN_COUNTERWEIGHT
+
 HERE = Path(__file__).resolve().parent
-MM = 1e-3
-DEG = np.pi / 180.0
+MM = 1e-3                  # m per mm
+RAD_PER_DEG = np.pi / 180.0
 BRASS_DENSITY = 8500.0  # kg/m^3, for the counterweight cylinders' size
 
 # --------------------------------------------------------------------------------------------
@@ -65,9 +68,7 @@ PSM = dict(
     carriage=(0.600, (35.908, -139.456)),  # sled + instrument + insertion drive
     # roll body (head): earlier simplified CAD export, "roller link"; COG assumed on the axis
     roll_link=(0.875, (-290.816, 0.0)),
-    # counterweights (brass), osMDV fits
-    main_counterweight=(2.63, 200.28),        # kg, mm below the main axis, on the roll body
-    dpm_counterweight=(1.65, 150.10, 7.95),   # kg, mm from the pitch pivot, angle offset deg
+    # counterweights (brass), osMDV fits: rcm_kin.hardware MAIN_COUNTERWEIGHT, DPM_COUNTERWEIGHT (SI)
     # instrument link masses (ESTIMATED, taken out of the carriage mass)
     instrument_shaft=0.040, wrist_pitch_link=0.003, wrist_yaw_link=0.002, jaw_link=0.001,
     # joint limits
@@ -319,14 +320,36 @@ def dh_base_rotation_psm() -> np.ndarray:
     return np.column_stack([[0, 0, 1], [0, 1, 0], [-1, 0, 0]]).astype(float)
 
 
-def build_psm() -> str:
+@dataclass(frozen=True)
+class PsmLayout:
+    """The PSM's derived geometry (m, base frame and the frames of the URDF's links) and the
+    masses that are computed rather than tabled, shared by its links and joints."""
+
+    L: float                       # fork length: pitch pivot (CS0) to the RCM along the main axis
+    cs0: np.ndarray                # pitch pivot in the base frame
+    lower_on_drive: np.ndarray     # fork joints on the drive link
+    upper_on_drive: np.ndarray
+    rcm_in_framework: np.ndarray
+    upper_on_framework: np.ndarray
+    carriage_origin: np.ndarray
+    R_f3: np.ndarray               # DH frame 3 in the framework frame at q = 0
+    shaft_dir: np.ndarray          # from the RCM towards the tool
+    interface_c: np.ndarray        # instrument interface in the carriage frame at insertion 0
+    l_tool: float
+    l_p2y: float
+    l_y2t: float
+    m_carriage: float              # kg, without the instrument
+    cog_carriage: np.ndarray
+    cw1_pos: np.ndarray            # DPM counterweight in the drive link's frame
+
+
+def psm_layout() -> PsmLayout:
+    """The derived geometry from the PSM table (mm, deg) and rcm_kin.hardware (SI), in SI."""
     P = PSM
     L = P["cs0_to_rcm"] * MM
-    cs0 = np.array([-L, 0.0, 0.0])
     lower_on_drive = planar(P["lower_fork_on_drive"])
     upper_on_drive = planar(P["upper_fork_on_drive"])
     rcm_in_framework = -lower_on_drive            # (50, -152) from the distal fork joint
-    upper_on_framework = upper_on_drive - lower_on_drive   # (0, 70)
     carriage_origin = planar(P["carriage_origin"])
 
     # Instrument: DH frame 3 orientation in the framework frame at q = 0 (the framework frame
@@ -351,9 +374,19 @@ def build_psm() -> str:
     m_carriage = m_total - m_instr
     cog_carriage = (m_total * cog_total - sum(m * c for m, c in instrument)) / m_carriage
 
-    m_cw0, r_cw0 = P["main_counterweight"][0], P["main_counterweight"][1] * MM
-    m_cw1, r_cw1, phi_cw1 = P["dpm_counterweight"][0], P["dpm_counterweight"][1] * MM, P["dpm_counterweight"][2] * DEG
+    _, r_cw1, phi_cw1 = DPM_COUNTERWEIGHT      # kg, m from the pitch pivot, rad from straight down
     cw1_pos = np.array([r_cw1 * np.sin(phi_cw1), 0.0, -r_cw1 * np.cos(phi_cw1)])
+    return PsmLayout(L, np.array([-L, 0.0, 0.0]), lower_on_drive, upper_on_drive, rcm_in_framework,
+                     upper_on_drive - lower_on_drive, carriage_origin, R_f3, shaft_dir, interface_c,
+                     l_tool, l_p2y, l_y2t, m_carriage, cog_carriage, cw1_pos)
+
+
+def _psm_links(g: PsmLayout) -> list[Link]:
+    """The PSM's links: masses (kg), centres of gravity and visuals (m) in each link's frame."""
+    P = PSM
+    cs0, L = g.cs0, g.L
+    m_cw0, r_cw0 = MAIN_COUNTERWEIGHT              # kg, m below the main axis
+    m_cw1 = DPM_COUNTERWEIGHT[0]
     cw_radius = 0.035
     cw0_len, cw1_len = brass_cylinder(m_cw0, cw_radius), brass_cylinder(m_cw1, cw_radius)
 
@@ -361,48 +394,42 @@ def build_psm() -> str:
         m, c = P[key]
         return m, planar(c)
 
-    m_drive, c_drive = mass_cog("drive_link")
-    m_sup, c_sup = mass_cog("support_link")
-    m_lf, c_lf = mass_cog("lower_fork")
-    m_uf, c_uf = mass_cog("upper_fork")
-    m_fw, c_fw = mass_cog("framework")
-    m_roll, c_roll = mass_cog("roll_link")
     fork_end = np.array([L, 0.0, 0.0])
-    support_end = lower_on_drive  # the support link is parallel to the drive link's lower arm
-    deg = DEG
+    support_end = g.lower_on_drive  # the support link is parallel to the drive link's lower arm
     links = [
         Link("base_link", visuals=[
             bar(cs0 + [-0.08, 0, -0.06], cs0 + [-0.08, 0, -0.40], 0.06, 0.10, "steel"),
             Visual("box", (0.30, 0.30, 0.02), transform(p=cs0 + [-0.08, 0, -0.41]), "steel")]),
         Link("rcm", visuals=[marker(0.008)]),
-        body("roll_link", m_roll, c_roll, (0.10, 0.12, 0.08), visuals=[
+        body("roll_link", *mass_cog("roll_link"), (0.10, 0.12, 0.08), visuals=[
             cylinder_along(cs0 + [-0.06, 0, 0], cs0 + [0.05, 0, 0], 0.02, "steel"),
             bar(cs0 + [0, 0, 0], cs0 + [0, 0, -r_cw0], 0.015, 0.015, "steel"),
             Visual("box", (0.06, 0.12, 0.01), transform(p=cs0 + [0.05, 0, -0.01]), "aluminium")]),
         body("main_counterweight", m_cw0, [0, 0, 0], (2 * cw_radius, 2 * cw_radius, cw0_len), visuals=[
             Visual("cylinder", (cw_radius, cw0_len), transform(rot_x(np.pi / 2)), "brass")]),
-        body("drive_link", m_drive, c_drive, (0.07, 0.08, 0.09), visuals=[
-            bar([0, 0, 0], upper_on_drive, 0.02, 0.03, "printed"),
-            bar([0, 0, 0], cw1_pos, 0.012, 0.012, "steel"),
+        body("drive_link", *mass_cog("drive_link"), (0.07, 0.08, 0.09), visuals=[
+            bar([0, 0, 0], g.upper_on_drive, 0.02, 0.03, "printed"),
+            bar([0, 0, 0], g.cw1_pos, 0.012, 0.012, "steel"),
             cylinder_along([0, -0.06, 0], [0, 0.03, 0], 0.08, "aluminium"),
             cylinder_along([-0.02, 0.04, -0.02], [-0.02, 0.11, -0.02], 0.0175, "motor")]),
         body("dpm_counterweight", m_cw1, [0, 0, 0], (2 * cw_radius, 2 * cw_radius, cw1_len), visuals=[
             Visual("cylinder", (cw_radius, cw1_len), transform(rot_x(np.pi / 2)), "brass")]),
-        body("support_link", m_sup, c_sup, (0.16, 0.015, 0.02), frame_along(support_end), visuals=[
+        body("support_link", *mass_cog("support_link"), (0.16, 0.015, 0.02), frame_along(support_end), visuals=[
             bar([0, 0, 0], support_end, 0.015, 0.02, "printed")]),
-        body("lower_fork", m_lf, c_lf, (L, 0.03, 0.02), visuals=[
+        body("lower_fork", *mass_cog("lower_fork"), (L, 0.03, 0.02), visuals=[
             bar([0, 0, 0], fork_end, 0.02, 0.03, "printed")]),
-        body("upper_fork", m_uf, c_uf, (L, 0.03, 0.02), visuals=[
+        body("upper_fork", *mass_cog("upper_fork"), (L, 0.03, 0.02), visuals=[
             bar([0, 0, 0], fork_end, 0.02, 0.03, "printed")]),
-        body("framework", m_fw, c_fw, (0.04, 0.06, 0.45), visuals=[
-            bar([0, 0, 0], upper_on_framework, 0.02, 0.03, "printed"),
+        body("framework", *mass_cog("framework"), (0.04, 0.06, 0.45), visuals=[
+            bar([0, 0, 0], g.upper_on_framework, 0.02, 0.03, "printed"),
             bar([0.006, 0, -0.02], [0.006, 0, 0.45], 0.02, 0.04, "aluminium"),
-            bar([0.0, 0, 0.0], rcm_in_framework + [0, 0, 0.06], 0.012, 0.012, "printed")]),
-        body("carriage", m_carriage, cog_carriage, (0.06, 0.06, 0.10), visuals=[
-            Visual("box", (0.06, 0.05, 0.08), transform(p=cog_carriage), "printed"),
-            cylinder_along(interface_c, interface_c + [0, 0, 0.02], 0.02, "aluminium")]),
+            bar([0.0, 0, 0.0], g.rcm_in_framework + [0, 0, 0.06], 0.012, 0.012, "printed")]),
+        body("carriage", g.m_carriage, g.cog_carriage, (0.06, 0.06, 0.10), visuals=[
+            Visual("box", (0.06, 0.05, 0.08), transform(p=g.cog_carriage), "printed"),
+            cylinder_along(g.interface_c, g.interface_c + [0, 0, 0.02], 0.02, "aluminium")]),
     ]
     # Instrument links: frames follow the osMDV DH table from DH frame 3 on.
+    l_tool, l_p2y, l_y2t = g.l_tool, g.l_p2y, g.l_y2t
     links += [
         body("instrument_shaft", P["instrument_shaft"], [0, 0, 0.5 * l_tool], (0.008, 0.008, l_tool), visuals=[
             Visual("cylinder", (0.004, l_tool), transform(p=[0, 0, 0.5 * l_tool]), "steel")]),
@@ -415,40 +442,56 @@ def build_psm() -> str:
             bar([0, 0, 0], [l_y2t, 0, 0], 0.003, 0.003, "steel")]),
         Link("tool_tip", visuals=[marker(0.003)]),
     ]
-    roll_lim, pitch_lim = P["roll_limit"] * deg, P["pitch_limit"] * deg
+    return links
+
+
+def _psm_joints(g: PsmLayout) -> list[Joint]:
+    """The PSM's joints: placements (m) in the parent link's frame, axes, limits (rad, m)."""
+    P = PSM
+    cs0, l_tool = g.cs0, g.l_tool
+    roll_lim, pitch_lim = P["roll_limit"] * RAD_PER_DEG, P["pitch_limit"] * RAD_PER_DEG
+    instrument_roll_lim, wrist_lim = P["instrument_roll_limit"] * RAD_PER_DEG, P["wrist_limit"] * RAD_PER_DEG
     passive = (-2 * pitch_lim, 2 * pitch_lim)
     ins_lo, ins_hi = (x * MM for x in P["insertion_range"])
-    joints = [
+    fork_end = np.array([g.L, 0.0, 0.0])
+    return [
         Joint("rcm_frame", "fixed", "base_link", "rcm", np.eye(4)),
         Joint("roll", "revolute", "base_link", "roll_link", np.eye(4), (-1, 0, 0), (-roll_lim, roll_lim)),
         Joint("main_counterweight_mount", "fixed", "roll_link", "main_counterweight",
-              transform(p=cs0 + [0, 0, -r_cw0])),
+              transform(p=cs0 + [0, 0, -MAIN_COUNTERWEIGHT[1]])),
         Joint("pitch", "revolute", "roll_link", "drive_link", transform(p=cs0), (0, 1, 0), (-pitch_lim, pitch_lim)),
-        Joint("dpm_counterweight_mount", "fixed", "drive_link", "dpm_counterweight", transform(p=cw1_pos)),
-        Joint("lower_fork_joint", "revolute", "drive_link", "lower_fork", transform(p=lower_on_drive), (0, 1, 0), passive),
+        Joint("dpm_counterweight_mount", "fixed", "drive_link", "dpm_counterweight", transform(p=g.cw1_pos)),
+        Joint("lower_fork_joint", "revolute", "drive_link", "lower_fork", transform(p=g.lower_on_drive), (0, 1, 0),
+              passive),
         Joint("framework_joint", "revolute", "lower_fork", "framework", transform(p=fork_end), (0, 1, 0), passive),
-        Joint("insertion", "prismatic", "framework", "carriage", transform(p=carriage_origin), tuple(shaft_dir),
+        Joint("insertion", "prismatic", "framework", "carriage", transform(p=g.carriage_origin), tuple(g.shaft_dir),
               (ins_lo, ins_hi)),
-        Joint("instrument_roll", "revolute", "carriage", "instrument_shaft", transform(R_f3, interface_c),
-              (0, 0, 1), (-P["instrument_roll_limit"] * deg, P["instrument_roll_limit"] * deg)),
+        Joint("instrument_roll", "revolute", "carriage", "instrument_shaft", transform(g.R_f3, g.interface_c),
+              (0, 0, 1), (-instrument_roll_lim, instrument_roll_lim)),
         Joint("shaft_tip_frame", "fixed", "instrument_shaft", "shaft_tip", transform(p=[0, 0, l_tool])),
         Joint("wrist_pitch", "revolute", "instrument_shaft", "wrist_pitch_link",
               transform(p=[0, 0, l_tool]) @ dh_trailing(0, 0, -np.pi / 2) @ transform(rot_z(-np.pi / 2)),
-              (0, 0, 1), (-P["wrist_limit"] * deg, P["wrist_limit"] * deg)),
-        Joint("wrist_yaw", "revolute", "wrist_pitch_link", "wrist_yaw_link", dh_trailing(0, l_p2y, -np.pi / 2),
-              (0, 0, 1), (-P["wrist_limit"] * deg, P["wrist_limit"] * deg)),
+              (0, 0, 1), (-wrist_lim, wrist_lim)),
+        Joint("wrist_yaw", "revolute", "wrist_pitch_link", "wrist_yaw_link", dh_trailing(0, g.l_p2y, -np.pi / 2),
+              (0, 0, 1), (-wrist_lim, wrist_lim)),
         Joint("jaw", "revolute", "wrist_yaw_link", "jaw_link", np.eye(4), (0, 0, 1),
-              tuple(x * deg for x in P["jaw_range"])),
-        Joint("tool_tip_frame", "fixed", "wrist_yaw_link", "tool_tip", dh_trailing(0, l_y2t, 0)),
-        Joint("upper_fork_joint", "revolute", "drive_link", "upper_fork", transform(p=upper_on_drive), (0, 1, 0), passive),
+              tuple(x * RAD_PER_DEG for x in P["jaw_range"])),
+        Joint("tool_tip_frame", "fixed", "wrist_yaw_link", "tool_tip", dh_trailing(0, g.l_y2t, 0)),
+        Joint("upper_fork_joint", "revolute", "drive_link", "upper_fork", transform(p=g.upper_on_drive), (0, 1, 0),
+              passive),
         Joint("support_joint", "revolute", "roll_link", "support_link",
               transform(p=cs0 + [P["base_spacing"] * MM, 0, 0]), (0, 1, 0), passive),
     ]
+
+
+def build_psm() -> str:
+    """The PSM's URDF text."""
     comment = (" PSM of the rcm-kin project, written by urdf/generate.py from the osMDV parameter table:"
                " do not edit by hand. Open tree of the double parallelogram; the two loop closures and"
                " the actuated joints are in psm.toml beside this file. Inertia tensors are ESTIMATED"
                " (solid boxes carrying the CAD masses); see generate.py. ")
-    return write_urdf("psm", comment, links, joints)
+    layout = psm_layout()
+    return write_urdf("psm", comment, _psm_links(layout), _psm_joints(layout))
 
 
 # --------------------------------------------------------------------------------------------
@@ -457,14 +500,13 @@ def build_psm() -> str:
 def build_mtm() -> str:
     P = MTM
     l_sho, l_arm, l_ball, l_imu = (P[k] * MM for k in ("l_sho", "l_arm", "l_ball", "l_imu"))
-    deg = DEG
     R_b0 = rot_x(np.pi / 2)   # DH frame 0 (y up) in the base frame (z up)
-    m_cw, r_cw, phi_cw = P["counterweight"][0], P["counterweight"][1] * MM, P["counterweight"][2] * DEG
+    m_cw, r_cw, phi_cw = P["counterweight"][0], P["counterweight"][1] * MM, P["counterweight"][2] * RAD_PER_DEG
     cw_pos = np.array([-r_cw * np.cos(phi_cw), -r_cw * np.sin(phi_cw), 0.0])
     cw_radius = 0.015
     cw_len = brass_cylinder(m_cw, cw_radius)
     m_g3, m_g2, m_g1, m_g0 = P["gimbal"]
-    arm_lim, gim_lim = P["arm_limit"] * deg, P["gimbal_limit"] * deg
+    arm_lim, gim_lim = P["arm_limit"] * RAD_PER_DEG, P["gimbal_limit"] * RAD_PER_DEG
 
     def link(name, key, size, visuals):
         m, c = P[key]
@@ -513,7 +555,7 @@ def build_mtm() -> str:
               (0, 0, 1), (-gim_lim, gim_lim)),
         Joint("tool_tip_frame", "fixed", "gimbal_g1", "tool_tip", dh_trailing(0, 0, -np.pi / 2)),
         Joint("g0", "revolute", "tool_tip", "gimbal_g0", np.eye(4), (0, 0, 1),
-              tuple(x * deg for x in P["grip_range"])),
+              tuple(x * RAD_PER_DEG for x in P["grip_range"])),
     ]
     comment = (" MTM of the rcm-kin project (left arm of the osMDV DH table), written by urdf/generate.py:"
                " do not edit by hand. Serial arm j1-j3 (shoulder pitch, shoulder yaw, elbow), gimbal g3, g2,"

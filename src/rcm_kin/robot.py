@@ -36,6 +36,18 @@ def robot_names() -> list[str]:
     return sorted(p.stem for p in urdf_dir().glob("*.toml"))
 
 
+@dataclass(frozen=True)
+class JointRow:
+    """One open-tree joint: limits in rad or m, unit axis in the base frame at q = 0."""
+
+    name: str
+    kind: str           # 'revolute' or 'prismatic'
+    role: str           # 'actuated' or 'passive'
+    lower: float
+    upper: float
+    axis: np.ndarray
+
+
 @dataclass(eq=False)
 class Robot:
     """A robot's models and index maps. ``*_data`` are Pinocchio scratch workspaces."""
@@ -93,6 +105,19 @@ class Robot:
         if not np.all(np.isfinite(q)):
             raise RcmKinError(f"joint values must be finite numbers, got {q.tolist()}")
         return np.concatenate([q, np.zeros(self.nq - q.size)])
+
+    def joint_table(self) -> list[JointRow]:
+        """Every joint of the open tree, in tree order, passive loop joints included."""
+        from rcm_kin.kinematics.fk import joint_axes_world  # kinematics builds on this module
+
+        axes = joint_axes_world(self, np.zeros(self.nq))
+        rows = []
+        for jid in range(1, self.tree.njoints):
+            name, i = self.tree.names[jid], self.tree.joints[jid].idx_q
+            rows.append(JointRow(name, self.joint_kind(name), "actuated" if name in self.actuated else "passive",
+                                 float(self.tree.lowerPositionLimit[i]), float(self.tree.upperPositionLimit[i]),
+                                 axes[name]))
+        return rows
 
 
 def _joint_q_index(model: pin.Model, name: str, where: str) -> int:

@@ -10,12 +10,16 @@ forces ``lambda`` act on link_b at the cut point, in frame A (N).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from rcm_kin.closure.description import LoopClosure
 from rcm_kin.errors import RcmKinError
+
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -60,7 +64,7 @@ def build_constraint_models(tree: pin.Model, loops: tuple[LoopClosure, ...]) -> 
     return constraints
 
 
-def closure_residual(robot, q_tree: np.ndarray) -> np.ndarray:
+def closure_residual(robot: Robot, q_tree: np.ndarray) -> np.ndarray:
     """Stacked independent loop-closure errors at ``q_tree`` (m); empty for a serial robot."""
     pin.forwardKinematics(robot.tree, robot.tree_data, q_tree)
     parts = []
@@ -70,7 +74,7 @@ def closure_residual(robot, q_tree: np.ndarray) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
-def constraint_jacobian(robot, q_tree: np.ndarray) -> np.ndarray:
+def constraint_jacobian(robot: Robot, q_tree: np.ndarray) -> np.ndarray:
     """``d closure_residual / d q_tree``: (independent rows) x (tree nv)."""
     model, data = robot.tree, robot.tree_data
     pin.computeJointJacobians(model, data, q_tree)
@@ -81,7 +85,7 @@ def constraint_jacobian(robot, q_tree: np.ndarray) -> np.ndarray:
     return np.vstack(blocks) if blocks else np.zeros((0, model.nv))
 
 
-def solve_loops(robot, q: np.ndarray, q_tree_guess: np.ndarray | None = None,
+def solve_loops(robot: Robot, q: np.ndarray, q_tree_guess: np.ndarray | None = None,
                 tol: float = 1e-13, max_iter: int = 50) -> np.ndarray:
     """Passive joints that close every loop, given actuated ``q`` (Newton on the residual).
 
@@ -100,7 +104,7 @@ def solve_loops(robot, q: np.ndarray, q_tree_guess: np.ndarray | None = None,
                       f"(residual {np.max(np.abs(r)):.2e} m after {max_iter} Newton steps)")
 
 
-def actuation_jacobian(robot, q_tree: np.ndarray) -> np.ndarray:
+def actuation_jacobian(robot: Robot, q_tree: np.ndarray) -> np.ndarray:
     """``S = d q_tree / d q`` on the constraint manifold: (tree nv) x (actuated).
 
     Rows of actuated joints are the identity; passive rows are ``-J_p^+ J_a``.
@@ -114,7 +118,7 @@ def actuation_jacobian(robot, q_tree: np.ndarray) -> np.ndarray:
     return S
 
 
-def project_torques(robot, q_tree: np.ndarray, tau_tree: np.ndarray) -> ProjectedTorques:
+def project_torques(robot: Robot, q_tree: np.ndarray, tau_tree: np.ndarray) -> ProjectedTorques:
     """Actuator forces that supply the open tree's generalised forces ``tau_tree``.
 
     Passive joints carry no actuator: the loop forces ``lambda`` take their share,
@@ -129,7 +133,7 @@ def project_torques(robot, q_tree: np.ndarray, tau_tree: np.ndarray) -> Projecte
     return ProjectedTorques(tau, lam)
 
 
-def mass_matrix(robot, q_tree: np.ndarray) -> np.ndarray:
+def mass_matrix(robot: Robot, q_tree: np.ndarray) -> np.ndarray:
     """Joint-space inertia in actuated coordinates, ``S^T M_tree S`` (kg m^2, kg)."""
     S = actuation_jacobian(robot, q_tree)
     M = pin.crba(robot.tree, robot.tree_data, q_tree, pin.Convention.WORLD)

@@ -9,11 +9,15 @@ ABA and analytic derivatives do not support mimic joints.)
 from __future__ import annotations
 
 import functools
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from rcm_kin.closure.description import PassiveRelation
+
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 
 def build_reduced_model(tree: pin.Model, passive: tuple[PassiveRelation, ...]) -> pin.Model:
@@ -27,20 +31,20 @@ def build_reduced_model(tree: pin.Model, passive: tuple[PassiveRelation, ...]) -
     return model
 
 
-def tree_configuration(robot, q) -> np.ndarray:
+def tree_configuration(robot: Robot, q) -> np.ndarray:
     """Open-tree configuration(s) of actuated ``q``, passive joints from the linear relations:
     ``q_tree = S q + offsets``. ``q`` is one pose (nq,) or a stack (N, nq)."""
     S, offsets = _linear_relations(robot)
     return np.asarray(q, dtype=float) @ S.T + offsets
 
 
-def relation_jacobian(robot) -> np.ndarray:
+def relation_jacobian(robot: Robot) -> np.ndarray:
     """``S = d q_tree / d q`` of the linear relations: (tree nv) x (actuated), constant."""
     return _linear_relations(robot)[0].copy()
 
 
 @functools.lru_cache(maxsize=None)
-def _linear_relations(robot) -> tuple[np.ndarray, np.ndarray]:
+def _linear_relations(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
     """``S`` and the offsets of ``q_tree = S q + offsets``, built once per robot (read-only)."""
     S = np.zeros((robot.tree.nv, robot.nq))
     S[robot.tree_q_actuated, np.arange(robot.nq)] = 1.0
@@ -53,7 +57,7 @@ def _linear_relations(robot) -> tuple[np.ndarray, np.ndarray]:
     return S, offsets
 
 
-def reduced_mass_matrix(robot, q: np.ndarray) -> np.ndarray:
+def reduced_mass_matrix(robot: Robot, q: np.ndarray) -> np.ndarray:
     """Joint-space inertia of the reduced model in actuated order (kg m^2, kg).
 
     Uses ``Convention.WORLD``: with mimic joints, Pinocchio 4.1's default (LOCAL) CRBA
@@ -65,7 +69,7 @@ def reduced_mass_matrix(robot, q: np.ndarray) -> np.ndarray:
     return M[np.ix_(i, i)]
 
 
-def reduced_gravity(robot, q: np.ndarray) -> np.ndarray:
+def reduced_gravity(robot: Robot, q: np.ndarray) -> np.ndarray:
     """Generalised gravity of the reduced model in actuated order (N m, N)."""
     g = pin.computeGeneralizedGravity(robot.reduced, robot.reduced_data, robot.to_reduced(q))
     return robot.from_reduced(g).copy()

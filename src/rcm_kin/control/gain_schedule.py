@@ -26,19 +26,20 @@ from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.weights import Weights
 from rcm_kin.dynamics.state_space import DrivenDynamics
 from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import HOME_INSERTION, INSERTION_KP
+from rcm_kin.robot import load_robot
 
-DEG = 180.0 / np.pi            # deg per rad
 THESIS_ROLL_DEG = (-20.0, 0.0, 20.0)
 THESIS_PITCH_DEG = (-15.0, 0.0, 15.0)
-INSERTION_KP = 30.0e3          # firmware insertion P loop: 30 PWM per mm (counts/m)
 ROLL, PITCH, INSERTION = 0, 1, 2
 
 
 def axis_model(A: np.ndarray, B: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
     """One joint's 2-state model ``[q; v]`` in degrees and PWM from the 6-state SI model
-    (the other joints frozen). Scaling both states by the same factor leaves ``A`` unchanged."""
+    (the other joints frozen). Scaling both states by the same factor leaves ``A`` unchanged;
+    ``B`` goes from rad (per s^2) per count to degrees per count."""
     i = [axis, axis + 3]
-    return A[np.ix_(i, i)], B[i][:, [axis]] * DEG
+    return A[np.ix_(i, i)], np.degrees(B[i][:, [axis]])
 
 
 def lqr_axis(a: np.ndarray, b: np.ndarray, Q: np.ndarray, R: np.ndarray, integral: bool = False) -> np.ndarray:
@@ -78,9 +79,10 @@ def closed_loop_matrix(A: np.ndarray, B: np.ndarray, k_roll, k_pitch, insertion_
     """Continuous closed-loop state matrix (7, 7) of the coupled 3-joint model under the firmware
     laws: roll ``[Kp, Kd]``, pitch ``[Kp, Kd, Ki]``, insertion P (counts/m). State: the model's
     ``[q; v]`` (SI) and the pitch error integral ``z`` (rad s, ``zdot = r - y``, here ``r = 0``)."""
+    kr, kp = np.degrees(k_roll), np.degrees(k_pitch)   # firmware gains per degree -> per radian
     K = np.zeros((3, 7))                 # u = -K [x; z], x in SI
-    K[ROLL, [0, 3]] = [-k_roll[0] * DEG, k_roll[1] * DEG]
-    K[PITCH, [1, 4, 6]] = [-k_pitch[0] * DEG, k_pitch[1] * DEG, k_pitch[2] * DEG]
+    K[ROLL, [0, 3]] = [-kr[0], kr[1]]
+    K[PITCH, [1, 4, 6]] = [-kp[0], kp[1], kp[2]]
     K[INSERTION, 2] = insertion_kp
     A_aug = np.zeros((7, 7))
     A_aug[:6, :6] = A
@@ -106,19 +108,22 @@ class GainSchedule:
     weights: Weights = field(default_factory=Weights)
 
 
-def check_grid(values, what: str, limit_deg: float = 30.0) -> np.ndarray:
+def check_grid(values, what: str, lower: float, upper: float) -> np.ndarray:
+    """``values`` (deg) as a strictly increasing grid inside the joint range ``[lower, upper]`` (rad)."""
     values = np.asarray(values, dtype=float)
     if values.ndim != 1 or values.size < 2 or not np.all(np.isfinite(values)):
         raise RcmKinError(f"the {what} grid needs at least 2 finite values (deg)")
     if np.any(np.diff(values) <= 0):
         raise RcmKinError(f"the {what} grid must be strictly increasing: {values.tolist()}")
-    if np.any(np.abs(values) > limit_deg + 1e-9):
-        raise RcmKinError(f"the {what} grid leaves the joint range +-{limit_deg:g} deg: {values.tolist()}")
+    lo, hi = np.degrees([lower, upper])
+    if values[0] < lo - 1e-9 or values[-1] > hi + 1e-9:
+        raise RcmKinError(f"the {what} grid leaves the joint range [{lo:g}, {hi:g}] deg: {values.tolist()}")
     return values
 
 
 def parse_grid(text: str) -> tuple[np.ndarray, np.ndarray]:
-    """``thesis`` or ``ROLLS:PITCHES`` with comma-separated degrees, e.g. ``-20,0,20:-15,0,15``."""
+    """``thesis`` or ``ROLLS:PITCHES`` with comma-separated degrees, e.g. ``-20,0,20:-15,0,15``,
+    inside the PSM's joint range (its URDF limits)."""
     if text == "thesis":
         return np.array(THESIS_ROLL_DEG), np.array(THESIS_PITCH_DEG)
     parts = text.split(":")
@@ -128,18 +133,21 @@ def parse_grid(text: str) -> tuple[np.ndarray, np.ndarray]:
         rolls, pitches = ([float(v) for v in p.split(",")] for p in parts)
     except ValueError:
         raise RcmKinError(f"--grid values must be numbers, got '{text}'") from None
-    return check_grid(rolls, "roll"), check_grid(pitches, "pitch")
+    psm = load_robot("psm")
+    limits = {joint: (lo, hi) for joint, lo, hi in zip(psm.actuated, psm.lower, psm.upper)}
+    return check_grid(rolls, "roll", *limits["roll"]), check_grid(pitches, "pitch", *limits["pitch"])
 
 
-def schedule_gains(model: DrivenDynamics, roll_deg, pitch_deg, insertion: float = 0.08,
+def schedule_gains(model: DrivenDynamics, roll_deg, pitch_deg, insertion: float = HOME_INSERTION,
                    weights: Weights | None = None) -> GainSchedule:
     """Design the gain tables on a roll x pitch grid (degrees) at one insertion (m)."""
     if model.coulomb:
         raise RcmKinError("design on the model without Coulomb friction: driven_dynamics(..., coulomb=False)")
     weights = weights or Weights()
-    roll_deg, pitch_deg = check_grid(roll_deg, "roll"), check_grid(pitch_deg, "pitch")
+    roll_deg = check_grid(roll_deg, "roll", model.lower[ROLL], model.upper[ROLL])
+    pitch_deg = check_grid(pitch_deg, "pitch", model.lower[PITCH], model.upper[PITCH])
     P, R = np.meshgrid(pitch_deg, roll_deg, indexing="ij")
-    Q = np.column_stack([R.ravel() / DEG, P.ravel() / DEG, np.full(R.size, insertion)])
+    Q = np.column_stack([np.radians(R.ravel()), np.radians(P.ravel()), np.full(R.size, insertion)])
     grid = linearize_grid(model, Q)
     shape = P.shape
     k_roll = np.array([roll_gains(a, b, weights) for a, b in zip(grid.A, grid.B)])

@@ -6,27 +6,35 @@ automatic differentiation of :mod:`rcm_kin.dynamics.state_space`; :func:`lineari
 gets the same matrices from Pinocchio's analytic ABA derivatives of the open tree projected
 through the loop closure, and :func:`linearize_finite_differences` by central differences, as
 independent checks. State ``[q; v]`` in SI (rad, m, rad/s, m/s), input PWM counts, output ``q``.
+:meth:`Linearization.to_ss` hands a model to python-control; :func:`zero_order_hold` samples
+one with the input held.
 """
 
 from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import casadi as ca
+import control
 import numpy as np
 import pinocchio as pin
+from scipy.linalg import expm
 
 from rcm_kin.closure.reduced import relation_jacobian, tree_configuration
-from rcm_kin.dynamics.drive import DRIVEN
+from rcm_kin.dynamics.drive import DRIVEN, DRIVEN_UNIT
 from rcm_kin.dynamics.gravity import offset_moments
 from rcm_kin.dynamics.state_space import DrivenDynamics, holding_pwm
 from rcm_kin.errors import RcmKinError
 
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
+
 
 @dataclass(frozen=True)
 class Linearization:
-    """A linear model about an equilibrium (SI state, PWM input)."""
+    """A linear model about an equilibrium (SI state, PWM input) of the driven joints."""
 
     x0: np.ndarray     # (6,) [q; v], v = 0
     u0: np.ndarray     # (3,) holding PWM
@@ -40,6 +48,27 @@ class Linearization:
     def as_dict(self) -> dict:
         return {"x0": self.x0.tolist(), "u0": self.u0.tolist(), "A": self.A.tolist(), "B": self.B.tolist(),
                 "C": self.C.tolist(), "D": self.D.tolist(), "state": self.state, "input": self.inputs}
+
+    def to_ss(self) -> control.StateSpace:
+        """The model as a python-control ``StateSpace`` in the deviations from ``(x0, u0)``, with
+        labelled signals: states ``roll [rad]`` .. ``insertion rate [m/s]``, inputs
+        ``roll PWM [counts]`` .., outputs the joint positions ``roll [rad]`` .. ``insertion [m]``."""
+        positions = [f"{j} [{DRIVEN_UNIT[j]}]" for j in DRIVEN]
+        rates = [f"{j} rate [{DRIVEN_UNIT[j]}/s]" for j in DRIVEN]
+        return control.ss(self.A, self.B, self.C, self.D, states=positions + rates,
+                          inputs=[f"{j} PWM [counts]" for j in DRIVEN], outputs=positions)
+
+
+def zero_order_hold(A: np.ndarray, B: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(Ad, Bd)`` of ``x[k+1] = Ad x[k] + Bd u[k]``: the exact sampling of ``xdot = A x + B u``
+    with ``u`` held over each ``period`` (s), ``expm([[A, B], [0, 0]] period)`` (what scipy's
+    ``cont2discrete(..., method="zoh")`` and python-control's ``c2d`` compute, without their
+    per-call set-up: this runs in the identification's and the stability survey's inner loops)."""
+    n, m = B.shape
+    block = np.zeros((n + m, n + m))
+    block[:n, :n], block[:n, n:] = A, B
+    E = expm(block * period)
+    return E[:n, :n], E[:n, n:]
 
 
 def equilibrium(model: DrivenDynamics, q) -> tuple[np.ndarray, np.ndarray]:
@@ -115,7 +144,7 @@ def linearize_finite_differences(model: DrivenDynamics, x, u, step: float = 1e-6
     return A, B
 
 
-def linearize_pinocchio(robot, model: DrivenDynamics, offsets: dict, x, u) -> tuple[np.ndarray, np.ndarray]:
+def linearize_pinocchio(robot: Robot, model: DrivenDynamics, offsets: dict, x, u) -> tuple[np.ndarray, np.ndarray]:
     """``(A, B)`` from Pinocchio's analytic derivatives, independent of the CasADi transcription.
 
     The rigid-body part is ``computeABADerivatives`` on the open tree (reflected rotor inertia as
@@ -163,14 +192,14 @@ def _symmetric(M: np.ndarray) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=8)
-def _armatured_tree(robot, model: DrivenDynamics) -> pin.Model:
+def _armatured_tree(robot: Robot, model: DrivenDynamics) -> pin.Model:
     tree = pin.Model(robot.tree)
     for joint, inertia in zip(DRIVEN, model.drive.reflected_inertia):
         tree.armature[tree.joints[tree.getJointId(joint)].idx_v] = inertia
     return tree
 
 
-def _offset_gravity(robot, offsets: dict, q_tree: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _offset_gravity(robot: Robot, offsets: dict, q_tree: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Generalised gravity (tree nv) of mass-free first moments and its q-derivative."""
     g, dg = np.zeros(robot.tree.nv), np.zeros((robot.tree.nv, robot.tree.nv))
     for joint, h in offset_moments(robot, offsets).items():
@@ -183,7 +212,7 @@ def _offset_gravity(robot, offsets: dict, q_tree: np.ndarray) -> tuple[np.ndarra
 
 
 @functools.lru_cache(maxsize=32)
-def _unit_mass_tree(robot, joint: int, lever: tuple) -> pin.Model:
+def _unit_mass_tree(robot: Robot, joint: int, lever: tuple) -> pin.Model:
     """The open tree with every body massless except 1 kg at ``lever`` (joint frame) on ``joint``."""
     model = pin.Model(robot.tree)
     for j in range(1, model.njoints):

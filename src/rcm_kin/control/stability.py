@@ -12,23 +12,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import expm
 
-from rcm_kin.control.gain_schedule import DEG, INSERTION_KP, GainSchedule, closed_loop_matrix, scheduled_gains
-from rcm_kin.control.linearization import linearize_grid
+from rcm_kin.control.gain_schedule import GainSchedule, closed_loop_matrix, scheduled_gains
+from rcm_kin.control.linearization import linearize_grid, zero_order_hold
 from rcm_kin.dynamics.state_space import DrivenDynamics
-
-FIRMWARE_PERIOD = 1.0 / 400.0   # s (thesis: about 400 Hz, 2.4 ms measured)
-ROLL_FILTER = 0.9               # EMA coefficient of the roll velocity
-
-
-def zero_order_hold(A: np.ndarray, B: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
-    """Exact discretisation with the input held over each period."""
-    n, m = B.shape
-    block = np.zeros((n + m, n + m))
-    block[:n, :n], block[:n, n:] = A, B
-    E = expm(block * period)
-    return E[:n, :n], E[:n, n:]
+from rcm_kin.hardware import FIRMWARE_PERIOD, INSERTION_KP, ROLL_FILTER
 
 
 def firmware_loop_matrix(A: np.ndarray, B: np.ndarray, k_roll, k_pitch, period: float = FIRMWARE_PERIOD,
@@ -46,9 +34,10 @@ def firmware_loop_matrix(A: np.ndarray, B: np.ndarray, k_roll, k_pitch, period: 
     z_new[9], z_new[1] = 1.0, -period
     raw_pitch = np.zeros(10)
     raw_pitch[1], raw_pitch[7] = 1 / period, -1 / period
+    kr, kp = np.degrees(k_roll), np.degrees(k_pitch)   # firmware gains per degree -> per radian
     G = np.zeros((3, 10))
-    G[0] = k_roll[0] * DEG * np.eye(10)[0] - k_roll[1] * DEG * vf_new
-    G[1] = k_pitch[0] * DEG * np.eye(10)[1] - k_pitch[1] * DEG * raw_pitch - k_pitch[2] * DEG * z_new
+    G[0] = kr[0] * np.eye(10)[0] - kr[1] * vf_new
+    G[1] = kp[0] * np.eye(10)[1] - kp[1] * raw_pitch - kp[2] * z_new
     G[2, 2] = -insertion_kp
     Phi = np.zeros((10, 10))
     Phi[:6] = np.hstack([Ad, np.zeros((6, 4))]) + Bd @ G
@@ -83,6 +72,8 @@ class StabilitySurvey:
 
 
 def damping_ratios(eigenvalues: np.ndarray) -> np.ndarray:
+    """Damping ratio ``-Re(s) / |s|`` of continuous-time eigenvalues ``s`` (1/s); the survey's
+    grid loop computes it directly rather than through a python-control system per point."""
     return -eigenvalues.real / np.abs(eigenvalues)
 
 
@@ -96,7 +87,7 @@ def stability_survey(model: DrivenDynamics, schedule: GainSchedule, points: int 
     rolls = np.linspace(schedule.roll_deg[0], schedule.roll_deg[-1], points)
     pitches = np.linspace(schedule.pitch_deg[0], schedule.pitch_deg[-1], points)
     P, R = np.meshgrid(pitches, rolls, indexing="ij")
-    Q = np.column_stack([R.ravel() / DEG, P.ravel() / DEG, np.full(R.size, schedule.insertion)])
+    Q = np.column_stack([np.radians(R.ravel()), np.radians(P.ravel()), np.full(R.size, schedule.insertion)])
     grid = linearize_grid(model, Q)
     max_real, radius, min_damping = (np.empty(R.size) for _ in range(3))
     for k, (r, p, A, B) in enumerate(zip(R.ravel(), P.ravel(), grid.A, grid.B)):

@@ -1,5 +1,7 @@
 """The thesis's measured gain tables (Tables 4.4-4.8) beside the model-based ones.
 
+The tables and the identified roll model are quoted in :mod:`rcm_kin.control.thesis_reference`.
+
 The thesis prints its tables with rows labelled pitch -20/0/+20 and columns roll -15/0/+15, but
 identified them on the grid pitch {-15, 0, 15} x roll {-20, 0, 20}; the rows here are that grid's
 pitches and the columns its rolls (``THESIS_PITCH_DEG`` x ``THESIS_ROLL_DEG``). Units and signs
@@ -15,18 +17,13 @@ import numpy as np
 from rcm_kin.control.gain_schedule import (THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, bilinear,
                                            schedule_gains)
 from rcm_kin.control.stability import StabilitySurvey, stability_survey
+from rcm_kin.control.thesis_reference import K_PITCH, K_ROLL, ROLL_TF
 from rcm_kin.dynamics.state_space import DrivenDynamics
 
-THESIS_K_ROLL = np.stack([np.array([[135.41, 135.41, 137.91], [136.23, 132.23, 130.12], [137.36, 135.77, 131.78]]),
-                          np.array([[0.6527, 1.0829, 0.43766], [0.6854, 0.7588, 0.4810], [0.6579, 1.0788, 0.42543]])],
-                         axis=-1)
-THESIS_K_PITCH = np.stack([
-    np.array([[188.07, 195.37, 191.11], [161.41, 166.32, 167.01], [153.37, 155.56, 151.23]]),
-    np.array([[0.3124, 0.3256, 0.3154], [0.3671, 0.3671, 0.3272], [0.3643, 0.3374, 0.3576]]),
-    np.array([[0.143744, 0.185649, 0.164665], [0.135649, 0.153566, 0.155123], [0.124432, 0.155649, 0.134566]])],
-    axis=-1)
-# The thesis's identified roll model at (0, 0): G(s) = (4.0426 s - 8.3312) / (s^2 + 6.1202 s + 16.288), PWM -> deg.
-THESIS_ROLL_TF = (np.array([4.0426, -8.3312]), np.array([1.0, 6.1202, 16.288]))
+# the thesis's tables and identified roll model (sources: rcm_kin.control.thesis_reference)
+THESIS_K_ROLL = K_ROLL
+THESIS_K_PITCH = K_PITCH
+THESIS_ROLL_TF = ROLL_TF
 
 
 @dataclass(frozen=True)
@@ -57,3 +54,43 @@ def compare_with_thesis(model: DrivenDynamics, points: int = 21) -> ThesisCompar
         schedule, stability_survey(model, schedule, points), stability_survey(model, schedule, points, thesis),
         stability_survey(model, schedule, points, lambda r, p: thesis(r, p, -1.0)),
         thesis_roll_closed_loop(*THESIS_K_ROLL[1, 1]))
+
+
+@dataclass(frozen=True)
+class ScheduleContrast:
+    """The numbers that set the model-based schedule and the thesis's tables apart."""
+
+    gain_spread: float             # largest relative spread (peak to peak / mean) of a model Kp over the grid
+    stiffness_ratio: float         # least ratio of closed-loop (Kp times drive gain) to gravity stiffness
+    model_roll_damping: float      # 1/s, the model's roll velocity damping at the grid's centre
+    model_ki: float                # PWM/(deg s), mean model pitch Ki
+    model_integral_time: float     # s, mean model pitch Kp / Ki
+    thesis_kp_roll: tuple[float, float]    # PWM/deg, least and largest roll Kp of the thesis tables
+    thesis_kp_pitch: tuple[float, float]   # PWM/deg, least and largest pitch Kp
+    thesis_ki: float               # PWM/(deg s), mean pitch Ki of the thesis tables
+    thesis_integrator_pole: float  # 1/s, about -Ki/Kp of the thesis's pitch at the grid's centre
+    thesis_roll_damping: float     # 1/s, damping term of the identified roll model's denominator
+    thesis_roll_zero: float        # rad/s, the identified roll model's zero (right half-plane if > 0)
+
+
+def schedule_contrast(schedule: GainSchedule) -> ScheduleContrast:
+    """What differs between ``schedule`` (model-based) and the thesis's tables, in numbers."""
+    kp = (schedule.k_roll[..., 0], schedule.k_pitch[..., 0])        # roll, pitch (PWM/deg)
+    # closed-loop stiffness Kp B (per rad) against the gravity stiffness dv/dq of the open loop, per axis
+    stiffness = [np.min(np.degrees(k) * np.abs(schedule.B[..., 3 + a, a]) / np.abs(schedule.A[..., 3 + a, a]))
+                 for a, k in enumerate(kp)]
+    centre = (len(schedule.pitch_deg) // 2, len(schedule.roll_deg) // 2)
+    num, den = ROLL_TF
+    thesis_centre = (K_PITCH.shape[0] // 2, K_PITCH.shape[1] // 2)
+    return ScheduleContrast(
+        gain_spread=float(max(np.ptp(k) / np.abs(k).mean() for k in kp)),
+        stiffness_ratio=float(min(stiffness)),
+        model_roll_damping=float(-schedule.A[centre][3, 3]),
+        model_ki=float(schedule.k_pitch[..., 2].mean()),
+        model_integral_time=float(np.mean(schedule.k_pitch[..., 0] / schedule.k_pitch[..., 2])),
+        thesis_kp_roll=(float(K_ROLL[..., 0].min()), float(K_ROLL[..., 0].max())),
+        thesis_kp_pitch=(float(K_PITCH[..., 0].min()), float(K_PITCH[..., 0].max())),
+        thesis_ki=float(K_PITCH[..., 2].mean()),
+        thesis_integrator_pole=float(-K_PITCH[thesis_centre][2] / K_PITCH[thesis_centre][0]),
+        thesis_roll_damping=float(den[1]),
+        thesis_roll_zero=float(-num[1] / num[0]))

@@ -7,6 +7,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import PWM_LIMIT
 
 
 @dataclass(frozen=True)
@@ -18,18 +19,19 @@ class Weights:
     sinusoids (3 s period, 2.1 rad/s) are tracked within a few per cent of their amplitude,
     slow enough for the 400 Hz loop and the roll's velocity filter (EMA 0.9: a pole at
     42 rad/s), which :func:`firmware_loop_matrix` checks. A 2 deg error may use the full
-    firmware PWM range (roll 100, pitch 150); 100 deg/s is a fast but ordinary joint speed; the
-    pitch integral budget of 0.5 deg s lets the integrator remove a friction-sized offset in
-    a fraction of a second without dominating the transient.
+    firmware PWM range (:data:`rcm_kin.hardware.PWM_LIMIT`: roll 100, pitch 150 counts);
+    100 deg/s is a fast but ordinary joint speed; the pitch integral budget of 0.5 deg s lets
+    the integrator remove a friction-sized offset in a fraction of a second without dominating
+    the transient.
     """
 
     roll_error_deg: float = 2.0
     roll_rate_deg_s: float = 100.0
-    roll_pwm: float = 100.0
+    roll_pwm: float = float(PWM_LIMIT[0])
     pitch_error_deg: float = 2.0
     pitch_rate_deg_s: float = 100.0
     pitch_integral_deg_s: float = 0.5
-    pitch_pwm: float = 150.0
+    pitch_pwm: float = float(PWM_LIMIT[1])
 
     def __post_init__(self):
         for name, value in asdict(self).items():

@@ -10,20 +10,26 @@ ratio ``gear_ratio`` (motor rad per joint rad, or per metre for the insertion), 
     pwm       = pwm_sign * voltage / volts_per_pwm    (counts; hardware sign)
 
 The parameters live in ``rcm_kin/parameters/psm_drive.toml`` (documented there); the shipped
-set is the calibrated one (:mod:`rcm_kin.statics.calibration`).
+set is the calibrated one (:mod:`rcm_kin.statics.calibration`). The firmware's PWM saturation
+is not a drive constant: it comes from :data:`rcm_kin.hardware.PWM_LIMIT` (older files that
+still carry a ``pwm_limit`` key load when it agrees).
 """
 
 from __future__ import annotations
 
-from dataclasses import MISSING, dataclass, fields, replace
+from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
 
+from rcm_kin.dynamics.stick_slip import AxisFriction
 from rcm_kin.errors import RcmKinError, read_toml
+from rcm_kin.hardware import PWM_LIMIT
 
 DEFAULT_PARAMETERS = Path(__file__).resolve().parents[1] / "parameters" / "psm_drive.toml"
 DRIVEN = ("roll", "pitch", "insertion")
+DRIVEN_UNIT = {"roll": "rad", "pitch": "rad", "insertion": "m"}   # SI unit of each driven joint's position
+FIRMWARE_FIELDS = ("pwm_limit",)   # JointDrive fields set from rcm_kin.hardware, not read from the file
 
 
 @dataclass(frozen=True)
@@ -35,7 +41,7 @@ class JointDrive:
     resistance: float
     volts_per_pwm: float
     pwm_sign: float
-    pwm_limit: float
+    pwm_limit: float                 # counts: the firmware saturation (rcm_kin.hardware.PWM_LIMIT on loading)
     rotor_inertia: float
     viscous: float
     coulomb: float
@@ -61,6 +67,7 @@ class DriveParameters:
     joints: dict[str, JointDrive]
     gravity_offsets: dict[str, np.ndarray]   # link -> first moment (kg m) in the link's frame
     source: str = ""
+    drive_train: dict[str, AxisFriction] = field(default_factory=dict)   # identified stick-slip model per joint
 
     def __getitem__(self, joint: str) -> JointDrive:
         return self.joints[joint]
@@ -79,39 +86,70 @@ class DriveEffort:
 
 
 def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
-    """Read a drive parameter file (default: the shipped, calibrated one)."""
+    """Read a drive parameter file (default: the shipped, calibrated one); each joint's
+    ``pwm_limit`` is the firmware's (:data:`rcm_kin.hardware.PWM_LIMIT`)."""
     path = Path(path) if path is not None else DEFAULT_PARAMETERS
     raw = read_toml(path, "drive parameter file")
-    names = [f.name for f in fields(JointDrive)]
-    required = [f.name for f in fields(JointDrive) if f.default is MISSING]
+    names = [f.name for f in fields(JointDrive) if f.name not in FIRMWARE_FIELDS]
+    required = [f.name for f in fields(JointDrive) if f.default is MISSING and f.name in names]
     joints = {}
-    for joint in DRIVEN:
+    for joint, limit in zip(DRIVEN, PWM_LIMIT):
         entry = raw.get(joint)
         if not isinstance(entry, dict) or set(required) - set(entry):
             raise RcmKinError(f"{path}: [{joint}] needs {', '.join(required)}")
-        unknown = sorted(set(entry) - set(names))
+        unknown = sorted(set(entry) - set(names) - set(FIRMWARE_FIELDS))
         if unknown:
             raise RcmKinError(f"{path}: [{joint}] has unknown keys {', '.join(unknown)} (known: {', '.join(names)})")
         try:
-            joints[joint] = JointDrive(**{n: float(entry[n]) for n in names if n in entry})
+            joints[joint] = JointDrive(**{n: float(entry[n]) for n in names if n in entry}, pwm_limit=float(limit))
+            legacy = float(entry.get("pwm_limit", limit))
         except (TypeError, ValueError):
             raise RcmKinError(f"{path}: [{joint}] values must be numbers") from None
+        if legacy != limit:
+            raise RcmKinError(f"{path}: [{joint}] pwm_limit = {legacy:g} differs from the firmware's {limit:g} "
+                              "counts (rcm_kin/hardware.py PWM_LIMIT); drive files no longer set it: remove the "
+                              "key (a simulation takes other limits through FirmwareSettings, --pwm-limit)")
     offsets = {}
     for link, value in raw.get("gravity_offsets", {}).items():
         v = np.asarray(value, dtype=float)
         if v.shape != (3,):
             raise RcmKinError(f"{path}: gravity_offsets.{link} must be 3 numbers (kg m)")
         offsets[link] = v
-    return DriveParameters(joints, offsets, str(path))
+    return DriveParameters(joints, offsets, str(path), _drive_train(path, raw.get("drive_train", {})))
+
+
+def _drive_train(path: Path, raw: dict) -> dict[str, AxisFriction]:
+    """The ``[drive_train.<joint>]`` tables: the identified stick-slip model of each joint."""
+    known = [f.name for f in fields(AxisFriction)]
+    out = {}
+    for joint, entry in raw.items():
+        if joint not in DRIVEN or not isinstance(entry, dict):
+            raise RcmKinError(f"{path}: [drive_train.{joint}] is not a driven joint ({', '.join(DRIVEN)})")
+        unknown = sorted(set(entry) - set(known))
+        if unknown:
+            raise RcmKinError(f"{path}: [drive_train.{joint}] has unknown keys {', '.join(unknown)} "
+                              f"(known: {', '.join(known)})")
+        try:
+            values = {k: float(v) for k, v in entry.items()}
+        except (TypeError, ValueError):
+            raise RcmKinError(f"{path}: [drive_train.{joint}] values must be numbers") from None
+        if not all(np.isfinite(v) for v in values.values()) or any(
+                values.get(k, 0.0) < 0 for k in known if k != "presliding_slope"):
+            raise RcmKinError(f"{path}: [drive_train.{joint}] values must be finite, and >= 0 except presliding_slope")
+        out[joint] = AxisFriction(**values)
+    return out
 
 
 def write_parameters(params: DriveParameters, path: str | Path, header: str = "") -> Path:
     """Write a drive parameter file in the format :func:`load_drive_parameters` reads."""
     lines = [f"# {line}" if line else "#" for line in header.splitlines()]
     for joint, drive in params.joints.items():
-        lines += ["", f"[{joint}]"] + [f"{k} = {float(v)!r}" for k, v in vars(drive).items()]
+        values = {k: v for k, v in vars(drive).items() if k not in FIRMWARE_FIELDS}
+        lines += ["", f"[{joint}]"] + [f"{k} = {float(v)!r}" for k, v in values.items()]
     lines += ["", "[gravity_offsets]"]
     lines += [f"{link} = [{', '.join(repr(float(x)) for x in h)}]" for link, h in params.gravity_offsets.items()]
+    for joint, friction in params.drive_train.items():
+        lines += ["", f"[drive_train.{joint}]"] + [f"{k} = {float(v)!r}" for k, v in friction.as_dict().items()]
     path = Path(path)
     try:
         path.write_text("\n".join(lines) + "\n")

@@ -13,6 +13,7 @@ force (N) each actuated joint must supply to hold the pose. Three ways to the sa
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -23,8 +24,11 @@ from rcm_kin.closure.reduced import reduced_gravity, relation_jacobian, tree_con
 from rcm_kin.errors import RcmKinError
 from rcm_kin.symbolic.tree import joint_axis
 
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
-def gravity_torque(robot, q, method: str = "reduced") -> np.ndarray:
+
+def gravity_torque(robot: Robot, q, method: str = "reduced") -> np.ndarray:
     """Holding torques of the actuated joints at actuated ``q`` (N m, N), actuated order.
 
     ``method``: ``"reduced"`` (mimic model) or ``"constrained"`` (loop solve + projection).
@@ -86,7 +90,7 @@ def _rotate(R: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     return R[:, 0, None] * B[0] + R[:, 1, None] * B[1] + R[:, 2, None] * B[2]
 
 
-def tree_kinematics_batch(robot, Q: np.ndarray) -> TreeKinematicsBatch:
+def tree_kinematics_batch(robot: Robot, Q: np.ndarray) -> TreeKinematicsBatch:
     """Placements of all open-tree joints at (N, nq) actuated poses."""
     model = robot.tree
     Qt = tree_configuration(robot, Q)
@@ -111,7 +115,7 @@ def tree_kinematics_batch(robot, Q: np.ndarray) -> TreeKinematicsBatch:
     return TreeKinematicsBatch(R, p, axes, prismatic)
 
 
-def _subtree_torques(robot, kin: TreeKinematicsBatch, mass: np.ndarray, first_moment: np.ndarray) -> np.ndarray:
+def _subtree_torques(robot: Robot, kin: TreeKinematicsBatch, mass: np.ndarray, first_moment: np.ndarray) -> np.ndarray:
     """Actuated gravity torques (N, nq) of per-joint masses (njoints,) and world first
     moments (njoints, 3, N) (kg, kg m), accumulated over subtrees."""
     model = robot.tree
@@ -135,14 +139,15 @@ def _subtree_torques(robot, kin: TreeKinematicsBatch, mass: np.ndarray, first_mo
     return tau_tree @ relation_jacobian(robot)
 
 
-def _poses(robot, Q) -> np.ndarray:
+def _poses(robot: Robot, Q) -> np.ndarray:
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     if Q.ndim != 2 or Q.shape[1] != robot.nq or not np.all(np.isfinite(Q)):
         raise RcmKinError(f"poses must be finite rows of {robot.nq} joint values, got shape {Q.shape}")
     return Q
 
 
-def gravity_batch(robot, Q, offsets: dict | None = None, chunk: int = 8192, progress: bool = False) -> np.ndarray:
+def gravity_batch(robot: Robot, Q, offsets: dict | None = None, chunk: int = 8192,
+                  progress: bool = False) -> np.ndarray:
     """Holding torques (N, nq) at (N, nq) actuated poses (N m, N), vectorised over poses in
     chunks of ``chunk`` poses (cache-sized); ``progress`` shows a bar over the chunks.
 
@@ -156,7 +161,7 @@ def gravity_batch(robot, Q, offsets: dict | None = None, chunk: int = 8192, prog
     return np.concatenate([_gravity_chunk(robot, Q[i:i + chunk], moments) for i in starts])
 
 
-def offset_moments(robot, offsets: dict) -> dict[int, np.ndarray]:
+def offset_moments(robot: Robot, offsets: dict) -> dict[int, np.ndarray]:
     """{joint index: first moment in the joint's frame (kg m)} of link first moments."""
     moments = {}
     for link, h in offsets.items():
@@ -167,7 +172,7 @@ def offset_moments(robot, offsets: dict) -> dict[int, np.ndarray]:
     return moments
 
 
-def _gravity_chunk(robot, Q: np.ndarray, moments: dict[int, np.ndarray]) -> np.ndarray:
+def _gravity_chunk(robot: Robot, Q: np.ndarray, moments: dict[int, np.ndarray]) -> np.ndarray:
     kin = tree_kinematics_batch(robot, Q)
     model = robot.tree
     mass = np.array([model.inertias[j].mass for j in range(model.njoints)])
@@ -179,7 +184,7 @@ def _gravity_chunk(robot, Q: np.ndarray, moments: dict[int, np.ndarray]) -> np.n
     return _subtree_torques(robot, kin, mass, H)
 
 
-def point_mass_gravity_batch(robot, Q, link: str, point) -> np.ndarray:
+def point_mass_gravity_batch(robot: Robot, Q, link: str, point) -> np.ndarray:
     """Holding torques (N, nq) of 1 kg at ``point`` (m, in ``link``'s frame) at poses ``Q``.
 
     Gravity is linear in mass, so a counterweight of mass m adds m times this."""

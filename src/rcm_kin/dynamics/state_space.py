@@ -19,6 +19,7 @@ joints are held at fixed values. The model, on CasADi symbols:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -27,10 +28,12 @@ from rcm_kin.closure.reduced import relation_jacobian, tree_configuration
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.gravity import offset_moments
 from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import DRIVER_PWM_RANGE
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
 from rcm_kin.symbolic.tree import tree_joints, world_placements
 
-PWM_RANGE = 255.0   # 8-bit sign-magnitude driver: |u| <= 255 counts
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -42,7 +45,6 @@ class DriveConstants:
     coulomb: np.ndarray            # N m (N)
     coulomb_velocity: np.ndarray   # rad/s (m/s)
     reflected_inertia: np.ndarray  # kg m^2 (kg)
-    pwm_limit: np.ndarray          # firmware saturation, counts
 
 
 def drive_constants(params: DriveParameters) -> DriveConstants:
@@ -52,8 +54,7 @@ def drive_constants(params: DriveParameters) -> DriveConstants:
         damping=np.array([x.torque_constant**2 * x.gear_ratio**2 / x.resistance + x.viscous for x in d]),
         coulomb=np.array([x.coulomb for x in d]),
         coulomb_velocity=np.array([x.coulomb_velocity for x in d]),
-        reflected_inertia=np.array([x.reflected_inertia for x in d]),
-        pwm_limit=np.array([x.pwm_limit for x in d]))
+        reflected_inertia=np.array([x.reflected_inertia for x in d]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,7 +82,7 @@ class DrivenDynamics:
         return [f"pwm_{j}" for j in self.joints]
 
 
-def driven_dynamics(robot, params: DriveParameters | None = None, q_fixed=None,
+def driven_dynamics(robot: Robot, params: DriveParameters | None = None, q_fixed=None,
                     coulomb: bool = True) -> DrivenDynamics:
     """Build the CasADi model of ``robot``'s driven joints (the PSM).
 
@@ -128,7 +129,7 @@ def driven_dynamics(robot, params: DriveParameters | None = None, q_fixed=None,
         gravity=ca.Function("gravity", [q], [g_rigid + g_offsets], ["q"], ["g"]))
 
 
-def _offset_gravity(robot, joints, gravity, params, phi, q) -> ca.SX:
+def _offset_gravity(robot: Robot, joints, gravity, params, phi, q) -> ca.SX:
     """Generalised gravity of the calibrated first moments (mass-free, kg m in link frames):
     the gradient of their potential ``-g . (R_j h_j)``."""
     moments = offset_moments(robot, params.gravity_offsets)
@@ -152,6 +153,6 @@ def check_state(x, u) -> tuple[np.ndarray, np.ndarray]:
                           f"PWM values, got {x.size} and {u.size}")
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(u))):
         raise RcmKinError("state and PWM must be finite numbers")
-    if np.any(np.abs(u) > PWM_RANGE):
-        raise RcmKinError(f"PWM beyond the 8-bit driver's range (|u| <= {PWM_RANGE:.0f} counts): {u.tolist()}")
+    if np.any(np.abs(u) > DRIVER_PWM_RANGE):
+        raise RcmKinError(f"PWM beyond the 8-bit driver's range (|u| <= {DRIVER_PWM_RANGE:.0f} counts): {u.tolist()}")
     return x, u

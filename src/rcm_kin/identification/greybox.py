@@ -8,11 +8,13 @@ the physics model of that joint alone is simulated against the measured angle:
 from rest at the log's angle ``q0``, with ``du`` the measured PWM step. ``M_ii``, ``g_i``,
 ``k_u`` and ``d_i`` (back-EMF) are the model's; starting from the model's own holding PWM
 ``u_hold(q0)`` keeps the static calibration out of the dynamic fit. The unknowns, shared by
-all logs, are the extra inertia ``J`` (kg m^2, beyond the CAD and the rotor), the viscous friction ``b`` (N m s/rad) and the Coulomb
-law's smoothing width ``v_c``; the Coulomb friction ``F_c`` (N m) is fitted per log (rad/s, at least 0.002: a narrower law
-sticks better but makes the ODE stiffer). RK4 with steps of at most 0.5 ms is unrolled in
-CasADi over each record, so the residual's Jacobian is exact (AD), and
-``scipy.optimize.least_squares`` solves the bounded problem.
+all logs, are the extra inertia ``J`` (kg m^2, beyond the CAD and the rotor), the viscous
+friction ``b`` (N m s/rad) and the Coulomb law's smoothing width ``v_c`` (rad/s, at least
+0.002: a narrower law sticks better but makes the ODE stiffer); the Coulomb friction ``F_c``
+(N m) is fitted per log. RK4 (:func:`rcm_kin.symbolic.integrators.rk4_map`) with steps of at
+most 0.5 ms is unrolled in CasADi over each record, so the residual's Jacobian is exact (AD),
+and ``scipy.optimize.least_squares`` solves the bounded problem. The insertion is held at the
+home insertion (:data:`rcm_kin.hardware.HOME_INSERTION`).
 """
 
 from __future__ import annotations
@@ -24,22 +26,21 @@ import casadi as ca
 import numpy as np
 from scipy.optimize import least_squares
 
-from rcm_kin.dynamics.drive import write_parameters
-from rcm_kin.control.gain_schedule import DEG
-from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, with_joint
+from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, with_joint, write_parameters
 from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
 from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.identification.records import Record, step_record
+from rcm_kin.identification.telemetry import load_telemetry
 from rcm_kin.identification.transfer_function import fit_percent
 from rcm_kin.robot import load_robot
-from rcm_kin.identification.telemetry import load_telemetry
+from rcm_kin.symbolic.integrators import rk4_map
 
 PARAMETERS = ("extra_inertia", "viscous", "coulomb", "coulomb_velocity")
 LOWER = np.array([0.0, 0.0, 0.0, 0.002])
 UPPER = np.array([2.0, 10.0, 5.0, 0.05])
 NEUTRAL_WIDTH = 0.02       # rad/s: Coulomb width of the neutral start
 MAX_STEP = 5e-4             # s: RK4 step bound (the friction's slope F_c / v_c makes the ODE stiff)
-HELD_INSERTION = 0.08       # m: the logs' insertion column is unusable (wrong conversion)
 
 
 @dataclass(frozen=True)
@@ -76,16 +77,17 @@ class GreyBoxFit:
 
 def step_logs(paths, joint: str, samples: int = 1000) -> list[StepLog]:
     """Trimmed step records with the pose they started from (other joints: their mean measured
-    angle over the record)."""
+    angle over the record; the insertion: the home insertion, the logs' insertion column being
+    unusable, a wrong conversion)."""
     out = []
     for path in paths:
         log = load_telemetry(path)
         record = step_record(log, joint, samples)
-        held = np.array([0.0, 0.0, HELD_INSERTION])
+        held = np.array([0.0, 0.0, HOME_INSERTION])
         for k, other in enumerate(("roll", "pitch")):
             if other in log.position:
-                held[k] = np.mean(log.position[other]) / DEG
-        held[DRIVEN.index(joint)] = record.y0 / DEG
+                held[k] = np.radians(np.mean(log.position[other]))
+        held[DRIVEN.index(joint)] = np.radians(record.y0)
         out.append(StepLog(Path(path).name, record, held))
     if not out:
         raise RcmKinError("the grey-box fit needs at least one step log")
@@ -104,24 +106,15 @@ def _residual_function(params: DriveParameters, joint: str, log: StepLog) -> ca.
     u_hold = holding_pwm(base, log.held)[i]
     tau = (d.input_gain[i] * (u_hold + u) - (d.damping[i] + theta[1]) * v
            - theta[2] * ca.tanh(v / theta[3]) - base.gravity(pose)[i])
-    f = ca.Function("f", [ca.vertcat(q, v), u, theta], [ca.vertcat(v, tau / (base.mass_matrix(pose)[i, i] + theta[0]))])
-    x = ca.SX.sym("x", 2)
-    substeps = int(np.ceil(log.record.period / MAX_STEP))
-    h = log.record.period / substeps
-    xk = x
-    for _ in range(substeps):
-        k1 = f(xk, u, theta)
-        k2 = f(xk + h / 2 * k1, u, theta)
-        k3 = f(xk + h / 2 * k2, u, theta)
-        k4 = f(xk + h * k3, u, theta)
-        xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    xdot = ca.vertcat(v, tau / (base.mass_matrix(pose)[i, i] + theta[0]))
+    f = ca.Function("f", [ca.vertcat(q, v), u, theta], [xdot], ["x", "u", "theta"], ["xdot"])
     n = log.record.u.size
-    run = ca.Function("step", [x, u, theta], [xk]).mapaccum(n)
+    run = rk4_map(f, log.record.period, int(np.ceil(log.record.period / MAX_STEP)), "step").mapaccum(n)
     p = ca.MX.sym("theta", len(PARAMETERS))
     q0 = log.held[i]
     states = run(ca.DM([q0, 0.0]), ca.DM(log.record.u).T, ca.repmat(p, 1, n))
     # the state after sample k-1's hold is the angle at sample k; sample 0 is the start
-    y = ca.vertcat(0.0, (states[0, :-1].T - q0) * DEG)
+    y = ca.vertcat(0.0, (states[0, :-1].T - q0) * np.degrees(1.0))   # rad -> deg
     r = y - ca.DM(log.record.y)
     return ca.Function("residual", [p], [r, ca.jacobian(r, p)])
 

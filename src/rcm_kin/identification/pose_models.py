@@ -1,9 +1,9 @@
 """Identification over a grid of logs (one per pose) beside the physics linearisation there.
 
 Per log: the record (step or PRBS), the transfer-function fit, and at the log's pose (from its
-file name, insertion 80 mm) the physics model's single-axis transfer function from PWM to
-angle (deg/PWM) without Coulomb friction, the other joints held as their controllers held
-them: its DC gain and poles beside the identified ones.
+file name, at the home insertion of 80 mm) the physics model's single-axis transfer function
+from PWM to angle (deg/PWM) without Coulomb friction, the other joints held as their
+controllers held them: its DC gain and poles (python-control) beside the identified ones.
 """
 
 from __future__ import annotations
@@ -13,15 +13,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import casadi as ca
+import control
 import numpy as np
 
-from rcm_kin.control.gain_schedule import DEG
 from rcm_kin.control.linearization import check_in_range
 from rcm_kin.dynamics.state_space import DrivenDynamics
 from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.identification.records import Record, operating_point, prbs_record, step_record
-from rcm_kin.identification.transfer_function import TransferFunctionFit, fit_transfer_function
 from rcm_kin.identification.telemetry import load_telemetry
+from rcm_kin.identification.transfer_function import TransferFunctionFit, dc_gain, fit_transfer_function
 
 AXIS = {"roll": 0, "pitch": 1}
 DEFAULT_ORDER = {"step": 2, "prbs": 3}
@@ -45,18 +46,25 @@ class PoseModel:
     physics: PhysicsAxis | None
 
 
-def physics_axis(model: DrivenDynamics, joint: str, roll_deg: float, pitch_deg: float,
-                 insertion: float = 0.08) -> PhysicsAxis:
-    """The physics model's PWM -> angle (deg) transfer function of ``joint`` at a pose with the
-    other joints held still (their controllers hold them):
-    ``G(s) = k_u DEG / (M_ii s^2 + d_i s + K_ii)``, ``K_ii = dg_i/dq_i`` (AD)."""
+def physics_transfer_function(model: DrivenDynamics, joint: str, roll_deg: float, pitch_deg: float,
+                              insertion: float = HOME_INSERTION) -> control.TransferFunction:
+    """The physics model's PWM (counts) -> angle (deg) transfer function of ``joint`` at a pose
+    (deg, deg, m) with the other joints held still (their controllers hold them):
+    ``G(s) = (180 / pi) k_u / (M_ii s^2 + d_i s + K_ii)``, ``K_ii = dg_i/dq_i`` (AD)."""
     i = AXIS[joint]
-    q = np.array([roll_deg / DEG, pitch_deg / DEG, insertion])
+    q = np.array([np.radians(roll_deg), np.radians(pitch_deg), insertion])
     check_in_range(model, q)
     M = np.array(model.mass_matrix(q))[i, i]
     K = np.array(_gravity_slope(model)(q))[i, i]
-    den = np.array([M, model.drive.damping[i], K])
-    return PhysicsAxis(model.drive.input_gain[i] * DEG / K if K != 0 else float("inf"), np.roots(den))
+    return control.tf([np.degrees(model.drive.input_gain[i])], [M, model.drive.damping[i], K],
+                      inputs=f"{joint} PWM [counts]", outputs=f"{joint} [deg]")
+
+
+def physics_axis(model: DrivenDynamics, joint: str, roll_deg: float, pitch_deg: float,
+                 insertion: float = HOME_INSERTION) -> PhysicsAxis:
+    """DC gain and poles of :func:`physics_transfer_function`."""
+    G = physics_transfer_function(model, joint, roll_deg, pitch_deg, insertion)
+    return PhysicsAxis(dc_gain(G), G.poles())
 
 
 def _gravity_slope(model: DrivenDynamics) -> ca.Function:

@@ -16,6 +16,8 @@ projection), so the fit is a multiple-shooting output error with that horizon.
 
 The fit percentage is MATLAB's ``100 (1 - |y - y_hat| / |y - mean(y)|)`` (NRMSE), of the
 simulated output (per segment, from its estimated initial state).
+
+:meth:`TransferFunctionFit.to_tf` hands a fit to python-control, which gives its poles and DC gain.
 """
 
 from __future__ import annotations
@@ -23,10 +25,12 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 
+import control
 import numpy as np
 from scipy import signal
 from scipy.optimize import least_squares
 
+from rcm_kin.control.linearization import zero_order_hold
 from rcm_kin.errors import RcmKinError
 
 
@@ -41,14 +45,20 @@ class TransferFunctionFit:
     segment: int | None         # samples per simulated segment (None: whole record from rest)
     y_fit: np.ndarray           # simulated output on the record (trailing partial segment dropped)
 
+    def to_tf(self, input: str = "PWM [counts]", output: str = "angle [deg]") -> control.TransferFunction:
+        """The fit as a continuous-time python-control ``TransferFunction`` (time in s), its
+        signals named ``input`` and ``output`` (by default the units of the identification records)."""
+        return control.tf(self.num, self.den, inputs=input, outputs=output)
+
     @property
     def poles(self) -> np.ndarray:
-        return np.roots(self.den)
+        """Poles (1/s)."""
+        return self.to_tf().poles()
 
     @property
     def dc_gain(self) -> float:
-        """``G(0)``; infinite for a model with an integrator."""
-        return float(self.num[-1] / self.den[-1]) if self.den[-1] != 0 else float("inf")
+        """``G(0)`` (output per input unit); infinite for a model with an integrator."""
+        return dc_gain(self.to_tf())
 
     def state_space(self) -> tuple[np.ndarray, ...]:
         """``(A, B, C, D)`` in controller canonical form (MATLAB's ``ss(tf)`` up to scaling)."""
@@ -62,6 +72,12 @@ class TransferFunctionFit:
                 "period_s": self.period, "segment_samples": self.segment}
 
 
+def dc_gain(G: control.TransferFunction) -> float:
+    """``G(0)`` of a SISO continuous-time transfer function; ``inf`` for one with an integrator."""
+    gain = complex(G.dcgain())
+    return gain.real if np.isfinite(gain) else float("inf")
+
+
 def fit_percent(y: np.ndarray, y_hat: np.ndarray) -> float:
     """MATLAB's fit percentage (NRMSE): 100 for a perfect fit, 0 for the mean, negative below."""
     spread = np.linalg.norm(y - np.mean(y))
@@ -70,12 +86,22 @@ def fit_percent(y: np.ndarray, y_hat: np.ndarray) -> float:
     return float(100.0 * (1.0 - np.linalg.norm(y - y_hat) / spread))
 
 
+def polynomial_text(coefficients, variable: str = "s") -> str:
+    """``[a, b, c]`` (descending powers) as ``a s^2 + b s + c``, five significant digits."""
+    n = len(coefficients) - 1
+    text = ""
+    for k, c in enumerate(coefficients):
+        power = f" {variable}^{n - k}" if n - k > 1 else f" {variable}" if n - k == 1 else ""
+        text += (f"{'-' if c < 0 else ''}{abs(c):.5g}" if k == 0 else f" {'-' if c < 0 else '+'} {abs(c):.5g}") + power
+    return text
+
+
 def _discrete(num, den, period: float):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", signal.BadCoefficients)
         A, B, C, D = signal.tf2ss(num, den)
-    Ad, Bd, Cd, Dd, _ = signal.cont2discrete((A, B, C, D), period, method="zoh")
-    return Ad, Bd, Cd, Dd
+    Ad, Bd = zero_order_hold(A, B, period)
+    return Ad, Bd, C, D
 
 
 def _forced_response(Ad, Bd, Cd, Dd, u: np.ndarray) -> np.ndarray:

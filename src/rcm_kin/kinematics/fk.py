@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from rcm_kin.closure.constrained import closure_residual
 from rcm_kin.closure.reduced import tree_configuration
+
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -18,14 +22,14 @@ class ForwardKinematics:
     closure_residual: float       # largest loop-closure error of the configuration used (m)
 
 
-def frame_placement(robot, q: np.ndarray, frame: str) -> pin.SE3:
+def frame_placement(robot: Robot, q: np.ndarray, frame: str) -> pin.SE3:
     """Placement of one frame in the base frame at actuated ``q`` (reduced model)."""
     fid = robot.frame_id(frame)
     pin.forwardKinematics(robot.reduced, robot.reduced_data, robot.to_reduced(q))
     return pin.updateFramePlacement(robot.reduced, robot.reduced_data, fid).copy()
 
 
-def forward_kinematics(robot, q, frames: tuple[str, ...] | None = None) -> ForwardKinematics:
+def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None) -> ForwardKinematics:
     """Frames of interest (default: the sidecar's ``frames``) at actuated ``q``."""
     q = robot.check_q(q)
     frames = robot.description.frames if frames is None else frames
@@ -37,7 +41,7 @@ def forward_kinematics(robot, q, frames: tuple[str, ...] | None = None) -> Forwa
     return ForwardKinematics(q, placements, float(np.max(np.abs(residual))) if residual.size else 0.0)
 
 
-def joint_axes_world(robot, q: np.ndarray) -> dict[str, np.ndarray]:
+def joint_axes_world(robot: Robot, q: np.ndarray) -> dict[str, np.ndarray]:
     """Unit axis of every open-tree joint in the base frame at actuated ``q``: the rotation
     axis of a revolute joint, the direction of motion of a prismatic one."""
     q_tree = tree_configuration(robot, q)

@@ -9,11 +9,15 @@ reported in the error, never returned as if it were a solution.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from rcm_kin.errors import RcmKinError
+
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -24,7 +28,7 @@ class IKResult:
     iterations: int
 
 
-def _pose_error(robot, q, fid, position, rotation) -> tuple[np.ndarray, pin.SE3]:
+def _pose_error(robot: Robot, q, fid, position, rotation) -> tuple[np.ndarray, pin.SE3]:
     pin.forwardKinematics(robot.reduced, robot.reduced_data, robot.to_reduced(q))
     placement = pin.updateFramePlacement(robot.reduced, robot.reduced_data, fid)
     e = position - placement.translation
@@ -34,7 +38,7 @@ def _pose_error(robot, q, fid, position, rotation) -> tuple[np.ndarray, pin.SE3]
     return e, placement
 
 
-def solve_ik(robot, frame: str, position, rotation: np.ndarray | None = None, q0=None,
+def solve_ik(robot: Robot, frame: str, position, rotation: np.ndarray | None = None, q0=None,
              joints: tuple[str, ...] | None = None, tol: float = 1e-10, max_iter: int = 500,
              damping: float = 1e-4, max_step: float = 0.2, restarts: int = 16,
              seed: int = 0) -> IKResult:
@@ -109,12 +113,12 @@ def _limited_step(J, e, q, lower, upper, damping) -> np.ndarray:
         free &= ~blocked
 
 
-def frame_reached(robot, q, fid) -> np.ndarray:
+def frame_reached(robot: Robot, q, fid) -> np.ndarray:
     pin.forwardKinematics(robot.reduced, robot.reduced_data, robot.to_reduced(q))
     return pin.updateFramePlacement(robot.reduced, robot.reduced_data, fid).translation.copy()
 
 
-def _result(robot, q, fid, position, rotation, iterations) -> IKResult:
+def _result(robot: Robot, q, fid, position, rotation, iterations) -> IKResult:
     _, placement = _pose_error(robot, q, fid, position, rotation)
     rot_err = 0.0 if rotation is None else float(np.linalg.norm(pin.log3(placement.rotation.T @ rotation)))
     return IKResult(q, float(np.linalg.norm(placement.translation - position)), rot_err, iterations)

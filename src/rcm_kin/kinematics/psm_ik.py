@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement, joint_axes_world
+
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 ARM = ("roll", "pitch", "insertion")
 WRIST = ("instrument_roll", "wrist_pitch", "wrist_yaw")
@@ -37,7 +41,7 @@ class RcmGeometry:
 
 
 @functools.lru_cache(maxsize=None)
-def rcm_geometry(robot) -> RcmGeometry:
+def rcm_geometry(robot: Robot) -> RcmGeometry:
     for name in ARM + WRIST:
         if name not in robot.actuated:
             raise RcmKinError(f"{robot.name} is not an RCM arm: it has no joint '{name}'")
@@ -68,7 +72,7 @@ def _angles_of_direction(g: RcmGeometry, u: np.ndarray) -> tuple[float, float]:
     return float(np.arctan2(b, a)), float(np.arctan2(g.sign * (u @ g.roll_axis), np.hypot(a, b)))
 
 
-def _within(robot, names, values, tol=1e-12) -> list[str]:
+def _within(robot: Robot, names, values, tol=1e-12) -> list[str]:
     """Descriptions of the limits that ``values`` break (empty when all are within)."""
     broken = []
     for name, value in zip(names, values):
@@ -83,7 +87,7 @@ def _within(robot, names, values, tol=1e-12) -> list[str]:
     return broken
 
 
-def shaft_tip_ik(robot, target) -> np.ndarray:
+def shaft_tip_ik(robot: Robot, target) -> np.ndarray:
     """[roll, pitch, insertion] (rad, rad, m) that put ``shaft_tip`` at ``target`` (m, base frame).
 
     Raises RcmKinError when no solution lies within the joint limits; never clamps.
@@ -110,7 +114,7 @@ def shaft_tip_ik(robot, target) -> np.ndarray:
                       f"it needs {problems[0]}")
 
 
-def wrist_ik(robot, q_arm, rotation: np.ndarray) -> np.ndarray:
+def wrist_ik(robot: Robot, q_arm, rotation: np.ndarray) -> np.ndarray:
     """[instrument_roll, wrist_pitch, wrist_yaw] (rad) giving ``tool_tip`` the base-frame
     ``rotation``, with roll, pitch and insertion at ``q_arm``. Closed form.
 
@@ -159,7 +163,7 @@ def wrist_ik(robot, q_arm, rotation: np.ndarray) -> np.ndarray:
     raise RcmKinError(f"tool orientation out of reach: it needs {problems[0]}")
 
 
-def _polish_wrist(robot, q: np.ndarray, q_wrist: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+def _polish_wrist(robot: Robot, q: np.ndarray, q_wrist: np.ndarray, rotation: np.ndarray) -> np.ndarray:
     """Two Gauss-Newton steps on the orientation error. Near the wrist singularity the
     arccos above loses half the digits (error ~1e-8 rad); this restores machine precision."""
     cols = [robot.actuated.index(n) for n in WRIST]
@@ -183,7 +187,7 @@ def _rz(angle: float) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=None)
-def _wrist_constants(robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _wrist_constants(robot: Robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Fixed rotations between the wrist joints: A (shaft -> wrist pitch), B (pitch -> yaw),
     C (yaw -> tool_tip frame)."""
     model = robot.tree
@@ -200,7 +204,7 @@ def _wrist_constants(robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             tool.placement.rotation.copy())
 
 
-def tool_pose_ik(robot, position, rotation: np.ndarray, jaw: float = 0.0):
+def tool_pose_ik(robot: Robot, position, rotation: np.ndarray, jaw: float = 0.0):
     """Actuated ``q`` putting ``tool_tip`` at ``position`` (m) with ``rotation`` (base frame).
 
     Closed-form start (shaft tip at the target, wrist orientation in closed form), then damped

@@ -9,11 +9,15 @@ parameters) they scatter around it.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement
+
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -23,7 +27,7 @@ class RcmScatter:
     rms_distance: float      # m
 
 
-def rcm_scatter(robot, shaft_frame: str, joints: tuple[str, str], base_frame: str | None = None,
+def rcm_scatter(robot: Robot, shaft_frame: str, joints: tuple[str, str], base_frame: str | None = None,
                 points: int = 15, q=None) -> RcmScatter:
     """Shaft lines = the z axis of ``shaft_frame`` over a ``points x points`` grid spanning the
     limits of ``joints`` (the other joints at ``q``, default 0), expressed in ``base_frame``

@@ -10,14 +10,17 @@ are z up with the same horizontal axes as the firmware's, so the firmware's vert
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.kinematics.psm_ik import shaft_tip_ik
 
-HOME_INSERTION = 0.080  # m
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -27,7 +30,7 @@ class TeleopMap:
     rotation: np.ndarray = field(default_factory=lambda: np.eye(3))  # MTM base axes -> PSM base axes
 
 
-def default_teleop_map(psm) -> TeleopMap:
+def default_teleop_map(psm: Robot) -> TeleopMap:
     q_home = np.zeros(psm.nq)
     q_home[psm.actuated.index("insertion")] = HOME_INSERTION
     return TeleopMap(home=frame_placement(psm, q_home, "shaft_tip").translation.copy())
@@ -41,7 +44,7 @@ def psm_targets(teleop: TeleopMap, displacement) -> np.ndarray:
     return teleop.home + (d @ teleop.rotation.T) * teleop.scale
 
 
-def teleop_joint_targets(psm, teleop: TeleopMap, displacements) -> np.ndarray:
+def teleop_joint_targets(psm: Robot, teleop: TeleopMap, displacements) -> np.ndarray:
     """[roll, pitch, insertion] (rad, rad, m) per displacement, shape (N, 3), by the PSM IK."""
     targets = np.atleast_2d(psm_targets(teleop, displacements))
     out = np.empty((len(targets), 3))

@@ -13,6 +13,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from rcm_kin.control.thesis_reference import FIGURES  # noqa: E402
+
+# line styles that stay apart when curves coincide (e.g. roll -15 and +15 by symmetry)
+STYLES = ({"ls": "-", "marker": "o", "ms": 4}, {"ls": "-", "lw": 2.4, "alpha": 0.7},
+          {"ls": "--", "marker": "x", "ms": 6}, {"ls": ":", "marker": "^", "ms": 4}, {"ls": "-."})
+
 
 def _save(fig, path: str | Path) -> Path:
     """Write the figure as a PNG (110 dpi) and free it."""
@@ -41,17 +47,40 @@ def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0) -> Path:
     return _save(fig, path)
 
 
+def _style(k: int, n: int) -> dict:
+    """Line style ``k`` of :data:`STYLES`, markers on about 12 of ``n`` samples."""
+    return {**STYLES[k % len(STYLES)], "markevery": max(1, n // 12)}
+
+
+def _same_as(curve: np.ndarray, earlier: dict) -> str:
+    """`` (on <label>)`` when ``curve`` coincides with an earlier one (label -> curve), else ''."""
+    for label, other in earlier.items():
+        if np.allclose(curve, other, rtol=1e-6, atol=1e-9 * (1 + np.abs(other).max())):
+            return f" (on {label})"
+    return ""
+
+
 def thesis_trend_curves(gmap, path: str | Path, insertion_index: int = 0, others=(-15.0, 0.0, 15.0)) -> Path:
-    """Fig 4.6 (|roll voltage| vs roll) and Fig 4.7 (pitch voltage vs pitch), computed."""
+    """Fig 4.6 (|roll voltage| vs roll) and Fig 4.7 (pitch voltage vs pitch), computed. Every
+    curve has its own line style; one lying on another says so in the legend."""
     e = gmap.effort
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
-    for other in others:
+    drawn_a, drawn_b = {}, {}
+    for k, other in enumerate(others):
         i = int(np.argmin(np.abs(gmap.pitch_deg - other)))
-        a.plot(gmap.roll_deg, np.abs(e.voltage[i, :, insertion_index, 0]), label=f"pitch {gmap.pitch_deg[i]:.0f} deg")
+        y = np.abs(e.voltage[i, :, insertion_index, 0])
+        label = f"pitch {gmap.pitch_deg[i]:.0f} deg"
+        a.plot(gmap.roll_deg, y, label=label + _same_as(y, drawn_a), **_style(k, y.size))
+        drawn_a[label] = y
         j = int(np.argmin(np.abs(gmap.roll_deg - other)))
-        b.plot(gmap.pitch_deg, e.voltage[:, j, insertion_index, 1], label=f"roll {gmap.roll_deg[j]:.0f} deg")
-    a.set(xlabel="roll (deg)", ylabel="|roll motor voltage| (V)", title="roll holding voltage (cf. thesis Fig 4.6)")
-    b.set(xlabel="pitch (deg)", ylabel="pitch motor voltage (V)", title="pitch holding voltage (cf. thesis Fig 4.7)")
+        y = e.voltage[:, j, insertion_index, 1]
+        label = f"roll {gmap.roll_deg[j]:.0f} deg"
+        b.plot(gmap.pitch_deg, y, label=label + _same_as(y, drawn_b), **_style(k, y.size))
+        drawn_b[label] = y
+    a.set(xlabel="roll (deg)", ylabel="|roll motor voltage| (V)",
+          title=f"roll holding voltage (cf. thesis {FIGURES['roll_holding']})")
+    b.set(xlabel="pitch (deg)", ylabel="pitch motor voltage (V)",
+          title=f"pitch holding voltage (cf. thesis {FIGURES['pitch_holding']})")
     for ax in (a, b):
         ax.grid(alpha=0.3)
         ax.legend()
@@ -59,50 +88,73 @@ def thesis_trend_curves(gmap, path: str | Path, insertion_index: int = 0, others
 
 
 def insertion_curves(gmap, path: str | Path) -> Path:
-    """Holding force of the insertion and torques of roll and pitch versus insertion."""
+    """Holding torque of roll and pitch and holding force of the insertion versus the insertion,
+    one curve per (roll, pitch) pose of the map: colour and marker by pitch, line style by roll;
+    the markers of the poses are staggered, so curves that coincide still show each pose."""
     e = gmap.effort
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), constrained_layout=True)
-    for k, (ax, name, unit) in enumerate(zip(axes, ("roll", "pitch", "insertion"), ("N m", "N m", "N"))):
-        ax.plot(gmap.insertion * 1e3, e.tau[0, 0, :, k])
-        ax.set(xlabel="insertion (mm)", ylabel=f"{name} holding ({unit})",
-               title=f"roll {gmap.roll_deg[0]:.0f}, pitch {gmap.pitch_deg[0]:.0f} deg")
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.9), layout="constrained")
+    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, len(gmap.pitch_deg)))
+    quantities = (("roll holding torque", "N m"), ("pitch holding torque", "N m"), ("insertion holding force", "N"))
+    for k, (ax, (name, unit)) in enumerate(zip(axes, quantities)):
+        for i, roll in enumerate(gmap.roll_deg):
+            for j, pitch in enumerate(gmap.pitch_deg):
+                every = max(1, gmap.insertion.size // 8)
+                ax.plot(gmap.insertion * 1e3, e.tau[j, i, :, k], color=colours[j], ls=("-", "--", ":", "-.")[i % 4],
+                        marker="osD^v"[j % 5], ms=5, fillstyle="none" if i % 2 else "full", lw=1.6,
+                        markevery=((i * len(gmap.pitch_deg) + j) * every // 6 % every, every),
+                        label=f"roll {roll:.0f}, pitch {pitch:.0f} deg")
+        ax.set(xlabel="insertion (mm)", ylabel=f"{name} ({unit})", title=name)
         ax.grid(alpha=0.3)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right center", fontsize=8)
+    fig.suptitle("Holding effort versus insertion (calibrated gravity): the insertion moves weight along the shaft, "
+                 "so roll torque changes only off roll 0,\npitch torque only off pitch 0, the insertion force "
+                 "(weight along the shaft) not at all", fontsize=10)
     return _save(fig, path)
 
 
 def stability_maps(surveys: dict, path: str | Path) -> Path:
     """Per survey (title -> StabilitySurvey): the 400 Hz firmware loop's slowest decay rate
-    ``-ln(spectral radius) / T`` (1/s; negative = unstable) over roll x pitch."""
-    from rcm_kin.control.stability import FIRMWARE_PERIOD
+    ``-ln(spectral radius) / T`` (1/s; negative = unstable) over roll x pitch, all panels on one
+    symmetric colour scale (zero, the stability limit, in the middle), each with its range."""
+    from rcm_kin.hardware import FIRMWARE_PERIOD
 
-    fig, axes = plt.subplots(1, len(surveys), figsize=(5 * len(surveys), 4), constrained_layout=True, squeeze=False)
+    decays = {title: -np.log(s.spectral_radius) / FIRMWARE_PERIOD for title, s in surveys.items()}
+    limit = max(float(np.abs(d).max()) for d in decays.values()) or 1.0
+    fig, axes = plt.subplots(1, len(surveys), figsize=(5 * len(surveys), 4.3), layout="constrained", squeeze=False)
     for ax, (title, s) in zip(axes[0], surveys.items()):
-        decay = -np.log(s.spectral_radius) / FIRMWARE_PERIOD
+        decay = decays[title]
         extent = [s.roll_deg[0], s.roll_deg[-1], s.pitch_deg[0], s.pitch_deg[-1]]
-        im = ax.imshow(decay, origin="lower", extent=extent, aspect="auto", cmap="RdYlGn",
-                       vmin=-np.abs(decay).max(), vmax=np.abs(decay).max())
+        im = ax.imshow(decay, origin="lower", extent=extent, aspect="auto", cmap="RdYlGn", vmin=-limit, vmax=limit)
+        if decay.min() < 0 < decay.max():
+            ax.contour(s.roll_deg, s.pitch_deg, decay, levels=[0.0], colors="k", linewidths=1.0)
+        verdict = ("unstable everywhere" if decay.max() <= 0 else "unstable in part" if decay.min() <= 0
+                   else "stable, barely (under 1 % of the scale)" if decay.min() < 0.01 * limit else "stable")
+        ax.text(0.03, 0.04, f"decay {decay.min():+.3g} to {decay.max():+.3g} 1/s\n{verdict}",
+                transform=ax.transAxes, fontsize=8, bbox={"facecolor": "white", "alpha": 0.85, "lw": 0})
         ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=title)
-        fig.colorbar(im, ax=ax, label="slowest decay rate (1/s)")
+    fig.colorbar(im, ax=axes[0].tolist(), label="slowest decay rate, 1/s (< 0 unstable; one scale for all)")
     return _save(fig, path)
 
 
 def tracking_figure(result, path: str | Path, title: str = "") -> Path:
     """Thesis Figs 5.2-5.5 and 5.8-5.9: reference and measured angle per axis (top) and the
     tracking error (bottom), with the PWM sent on a second axis."""
-    fig, axes = plt.subplots(2, 2, figsize=(11, 6), sharex=True, constrained_layout=True)
+    fig, axes = plt.subplots(2, 2, figsize=(11, 6.4), sharex=True, layout="constrained")
     for i, axis in enumerate(("roll", "pitch")):
         top, bottom = axes[0, i], axes[1, i]
         top.plot(result.time, result.reference[:, i], "k--", lw=1.2, label="reference")
         top.plot(result.time, result.measured[:, i], lw=1.2, label=f"measured ({result.controller})")
         top.set(ylabel=f"{axis} (deg)", title=f"{title} {axis}".strip())
-        top.legend(loc="upper right", fontsize=8)
         bottom.plot(result.time, result.error[:, i], color="tab:red", lw=1.0, label="error")
         bottom.set(xlabel="time (s)", ylabel="error (deg)")
         pwm = bottom.twinx()
-        pwm.plot(result.time, result.pwm[:, i], color="tab:gray", lw=0.6, alpha=0.6)
+        pwm.plot(result.time, result.pwm[:, i], color="tab:gray", lw=0.6, alpha=0.6, label="PWM sent (right axis)")
         pwm.set_ylabel("PWM (counts)", color="tab:gray")
         for ax in (top, bottom):
             ax.grid(alpha=0.3)
+    handles = [h for ax in (axes[0, 0], axes[1, 0], pwm) for h in ax.get_legend_handles_labels()[0]]
+    fig.legend(handles=handles, loc="outside upper center", ncol=len(handles), fontsize=8)   # off the curves
     return _save(fig, path)
 
 
@@ -114,31 +166,62 @@ def error_comparison_figure(results: list, path: str | Path, title: str = "") ->
             ax.plot(r.time, r.error[:, i], lw=1.0, label=r.controller)
         ax.set(xlabel="time (s)", ylabel=f"{axis} error (deg)", title=f"{title} {axis}".strip())
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="best")
     return _save(fig, path)
+
+
+GREYBOX_STYLES = {"measured": {"color": "k", "lw": 1.5},
+                  "starting": {"color": "tab:blue", "lw": 4.5, "alpha": 0.35},
+                  "fitted": {"color": "tab:orange", "lw": 1.6, "ls": "--"},
+                  "own_coulomb": {"color": "tab:green", "lw": 1.6, "ls": ":"}}
+GREYBOX_LABELS = {"measured": "measured", "starting": "starting set", "fitted": "fitted set (median Coulomb)",
+                  "own_coulomb": "fitted set, each log's own Coulomb"}
+
+
+def _measured_limits(measured: np.ndarray) -> tuple[float, float]:
+    """y-limits from the measured response (and zero), with room above and below."""
+    low, high = min(float(np.min(measured)), 0.0), max(float(np.max(measured)), 0.0)
+    span = (high - low) or 1.0
+    return low - 0.15 * span, high + 0.25 * span
+
+
+def _note_clipped(ax, response: dict, limits: tuple[float, float]) -> None:
+    """Say in the panel which simulated curves leave the axes, and how far they go."""
+    notes = []
+    for key in ("starting", "fitted", "own_coulomb"):
+        y = np.asarray(response[key])
+        if y.max() > limits[1] or y.min() < limits[0]:
+            far = y.max() if y.max() > limits[1] else y.min()
+            notes.append(f"{GREYBOX_LABELS[key].split(' (')[0]} off scale (to {far:+.3g})")
+    if notes:
+        ax.text(0.98, 0.03, "\n".join(notes), transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
+                bbox={"facecolor": "white", "alpha": 0.85, "lw": 0})
 
 
 def greybox_figure(fit, path: str | Path) -> Path:
     """Measured step responses beside the physics simulated with the starting and the fitted
-    parameters (and each log's own Coulomb friction), one panel per log."""
+    parameters (and each log's own Coulomb friction), one panel per log. The y-axis is the
+    measured response's; a simulated curve beyond it is clipped and the panel says so. The
+    starting set is a broad pale band under the fitted set's dashes, so both show where they agree."""
     n = len(fit.logs)
     cols = min(n, 3)
     rows = -(-n // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.2 * rows), constrained_layout=True, squeeze=False)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.4 * cols, 3.3 * rows + 0.5), layout="constrained", squeeze=False)
     for ax, name, r, before, after, own in zip(axes.flat, fit.logs, fit.responses, fit.fit_before, fit.fit_after,
                                                fit.fit_per_log_friction):
-        ax.plot(r["time"], r["measured"], "k", lw=1.5, label="measured")
-        ax.plot(r["time"], r["starting"], ":", label=f"starting set ({before:.0f} %)")
-        ax.plot(r["time"], r["fitted"], label=f"fitted set ({after:.0f} %)")
-        ax.plot(r["time"], r["own_coulomb"], "--", label=f"own Coulomb ({own:.0f} %)")
-        ax.set(title=name.replace(".csv", ""), xlabel="time (s)", ylabel=f"{fit.joint} change (deg)")
-        low, high = np.min(r["measured"]), np.max(r["measured"])
-        ax.set_ylim(min(low, 0) - 0.5 * (high - low), high + 1.5 * (high - low))   # the measured scale
+        for key in ("starting", "fitted", "own_coulomb", "measured"):
+            ax.plot(r["time"], r[key], label=GREYBOX_LABELS[key], **GREYBOX_STYLES[key])
+        limits = _measured_limits(r["measured"])
+        ax.set_ylim(*limits)
+        _note_clipped(ax, r, limits)
+        ax.set(title=f"{name.replace('.csv', '')}\nfit: starting {before:.0f} %, fitted {after:.0f} %, "
+                     f"own Coulomb {own:.0f} %", xlabel="time (s)", ylabel=f"{fit.joint} change (deg)")
         ax.title.set_fontsize(8)
-        ax.legend(fontsize=7)
         ax.grid(alpha=0.3)
     for ax in axes.flat[n:]:
         ax.axis("off")
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncol=4, fontsize=8)
     return _save(fig, path)
 
 

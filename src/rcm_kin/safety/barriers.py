@@ -1,14 +1,28 @@
 """Barrier functions ``B(x)`` with gradients: ``B <= 0`` is safe, ``B > 0`` unsafe (the
-convention of the safety thesis). Positions in metres.
+convention of the safety thesis). Positions in metres, in the frame of the state they are
+evaluated on (the scenario's base frame). The interface is :class:`Barrier` (a ``typing.Protocol``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from rcm_kin.errors import RcmKinError
+
+
+@runtime_checkable
+class Barrier(Protocol):
+    """What a safety filter needs of a barrier: ``value(x)`` = ``B(x)`` (safe where <= 0) and
+    ``gradient(x)`` = ``dB/dx`` (same length as the state ``x``), at a state ``x`` (m)."""
+
+    def value(self, x: np.ndarray) -> float:
+        ...
+
+    def gradient(self, x: np.ndarray) -> np.ndarray:
+        ...
 
 
 @dataclass(frozen=True)
@@ -69,7 +83,7 @@ class MovingPlane:
         return g
 
 
-def band_width(barrier, x_edge: np.ndarray) -> float:
+def band_width(barrier: Barrier, x_edge: np.ndarray) -> float:
     """``eps = |B|`` at a point chosen on the edge of the transition band (thesis: 1 cm outside
     the unsafe set along one axis)."""
     return abs(barrier.value(np.asarray(x_edge, dtype=float)))

@@ -18,6 +18,7 @@ import numpy as np
 from scipy import sparse
 
 from rcm_kin.errors import RcmKinError
+from rcm_kin.safety.barriers import Barrier
 
 LGB_ZERO = 1e-12     # |LgB|^2 below this: the barrier cannot be acted on here (k0 = 0)
 
@@ -29,7 +30,7 @@ class BarrierTerms:
     lg: np.ndarray        # L_G B(x), (m,)
 
 
-def barrier_terms(barrier, x: np.ndarray, f: np.ndarray, G: np.ndarray) -> BarrierTerms:
+def barrier_terms(barrier: Barrier, x: np.ndarray, f: np.ndarray, G: np.ndarray) -> BarrierTerms:
     """``B``, ``L_f B = dB/dx f`` and ``L_G B = dB/dx G`` at ``x``."""
     grad = barrier.gradient(x)
     return BarrierTerms(barrier.value(x), float(grad @ f), grad @ G)

@@ -20,13 +20,14 @@ none.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from rcm_kin.control.stability import zero_order_hold
+from rcm_kin.control.linearization import zero_order_hold
 from rcm_kin.errors import RcmKinError
-from rcm_kin.safety.barriers import Ellipsoid, MovingPlane, Slab, band_width
+from rcm_kin.safety.barriers import Barrier, Ellipsoid, MovingPlane, Slab, band_width
 from rcm_kin.safety.cbf import barrier_terms, blended_control, cbf_qp
 
 SCENARIOS = ("ellipsoid", "slide", "heart", "psm")
@@ -55,7 +56,8 @@ class SafetyRun:
                 "filter_active_s": float(np.count_nonzero(self.sigma > 0) * (self.time[1] - self.time[0]))}
 
 
-def run_linear(name: str, A, B, barriers, eps: float, nominal, x0, duration: float, filter: str = "blend",
+def run_linear(name: str, A, B, barriers: Sequence[Barrier], eps: float,
+               nominal: Callable[[float, np.ndarray], np.ndarray], x0, duration: float, filter: str = "blend",
                kappa: float = 1.0, dt: float = 5e-4, u_max: float = U_MAX) -> SafetyRun:
     """Simulate ``xdot = A x + B u`` with ``u = filter(nominal(t, x))`` clamped to ``+-u_max``. The
     blend uses the first barrier of ``barriers`` (the thesis's single-barrier law)."""
@@ -206,8 +208,8 @@ def psm_run(filter: str = "blend", trajectory=None, controller: str = "scheduled
     q = np.zeros(psm.nq)
     spline = CubicSpline(reference.time, joints)
     ref = Reference(reference.time, joints, spline(reference.time, 1), spline(reference.time, 2))
-    step, schedule = psm_plant_and_schedule(period=T)
-    run = simulate(step, make_controller(controller, schedule), ref, settings)
+    plant, schedule = psm_plant_and_schedule(period=T)
+    run = simulate(plant.step, make_controller(controller, schedule), ref, settings, initial=plant.initial)
     tip = []
     for true in si_units(run.position):       # the simulated robot's true joints, not the encoder counts
         q[:3] = true

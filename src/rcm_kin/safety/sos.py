@@ -75,6 +75,16 @@ def poly_eval(p: dict, x: np.ndarray) -> np.ndarray:
     return sum(float(c) * np.prod(x ** np.array(e), axis=1) for e, c in p.items())
 
 
+def poly_text(p: dict, variables) -> str:
+    """``p`` as ``+c x^2 y  +c x ...``: signed coefficients, highest total degree first."""
+    return "  ".join(_term_text(e, c, variables) for e, c in sorted(p.items(), key=lambda t: -sum(t[0])))
+
+
+def _term_text(exponents: tuple[int, ...], coefficient: float, variables) -> str:
+    factors = [v if k == 1 else f"{v}^{k}" for v, k in zip(variables, exponents) if k]
+    return " ".join([f"{coefficient:+.6g}"] + factors)
+
+
 def linear_field(M: np.ndarray) -> list[dict]:
     """``xdot = M x`` as one polynomial per state."""
     n = M.shape[0]

@@ -7,20 +7,23 @@ insertion in metres, error ``e = r - y``, PWM with the hardware sign (a positive
 roll and pitch angles and extends the insertion), so ``u = -(Kp e + ...)`` for roll and pitch.
 The insertion is held by the firmware's P loop (30 PWM/mm) under every controller.
 
-To add a controller: a dataclass with ``name``, ``initial_memory()`` and ``command``, and an
-entry in :func:`make_controller`.
+The interface is :class:`Controller` (a ``typing.Protocol``). To add a controller: a dataclass
+with ``name``, ``initial_memory()`` and ``command``, and an entry in :func:`make_controller`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from rcm_kin.control.gain_schedule import INSERTION_KP, GainSchedule, bilinear, scheduled_gains
+from rcm_kin.control import thesis_reference
+from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, bilinear, scheduled_gains
 from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import INSERTION_KP, P_GAINS
 
-CONTROLLERS = ("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity")
+CONTROLLERS = ("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity", "thesis")
 
 
 @dataclass(frozen=True)
@@ -34,6 +37,23 @@ class Sample:
     reference_acceleration: np.ndarray
     period: float                       # s
     pwm_limit: np.ndarray               # counts, for anti-windup
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """What the simulated firmware runs every period (:func:`rcm_kin.simulation.loop.simulate`).
+
+    ``command`` maps the memory and one :class:`Sample` to the PWM (3,) (counts, hardware sign,
+    before saturation) and the next memory; ``initial_memory`` is the memory before the first
+    sample (a float array, possibly empty). Pure: no state outside ``memory``."""
+
+    name: str
+
+    def initial_memory(self) -> np.ndarray:
+        ...
+
+    def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
+        ...
 
 
 def _insertion(sample: Sample) -> float:
@@ -54,13 +74,13 @@ def _conditional_integral(integral: float, error: float, period: float, law, lim
 class PController:
     """The thesis's baseline: ``u = -Kp e`` (PWM/deg), roll Kp 35, pitch Kp 60."""
 
-    kp: tuple[float, float] = (35.0, 60.0)
+    kp: tuple[float, float] = P_GAINS
     name: str = "p"
 
     def initial_memory(self) -> np.ndarray:
         return np.zeros(0)
 
-    def command(self, memory, sample: Sample):
+    def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         e = sample.reference[:2] - sample.position[:2]
         return np.array([-self.kp[0] * e[0], -self.kp[1] * e[1], _insertion(sample)]), memory
 
@@ -71,7 +91,7 @@ class PIDController:
     integral (deg s) with conditional anti-windup, ``de/dt`` the backward difference of the
     error (0 on the first sample). Gains per (roll, pitch): PWM/deg, PWM/(deg s), PWM/(deg/s)."""
 
-    kp: tuple[float, float] = (35.0, 60.0)
+    kp: tuple[float, float] = P_GAINS
     ki: tuple[float, float] = (50.0, 110.0)
     kd: tuple[float, float] = (5.0, 15.0)
     name: str = "pid"
@@ -79,7 +99,7 @@ class PIDController:
     def initial_memory(self) -> np.ndarray:
         return np.array([0.0, 0.0, np.nan, np.nan])      # integrals, previous errors
 
-    def command(self, memory, sample: Sample):
+    def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         e = sample.reference[:2] - sample.position[:2]
         de = np.where(np.isnan(memory[2:]), 0.0, (e - memory[2:]) / sample.period)
         u, integral = np.zeros(3), memory[:2].copy()
@@ -112,7 +132,7 @@ class StateFeedbackController:
     def initial_memory(self) -> np.ndarray:
         return np.zeros(1)                                  # pitch error integral, deg s
 
-    def command(self, memory, sample: Sample):
+    def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         s = self.schedule
         at = sample.position[:2] if self.scheduled else np.zeros(2)
         k_roll, k_pitch = scheduled_gains(s, at[0], at[1])
@@ -130,13 +150,43 @@ class StateFeedbackController:
         return u, np.array([integral])
 
 
-def make_controller(name: str, schedule: GainSchedule | None = None):
+@dataclass(frozen=True)
+class ThesisController:
+    """The controller the thesis flashed, law and signs as in its firmware: the gain tables of
+    Tables 4.4-4.8 (:mod:`rcm_kin.control.thesis_reference`) interpolated bilinearly at the
+    measured pose on the grid roll -20/0/20 x pitch -15/0/15 deg; roll ``u = -(Kp e + Kd v)``,
+    pitch ``u = -(Kp e + Kd v + Ki E)`` with ``v`` the firmware's velocity estimate itself (not the
+    velocity error) and ``E`` the error integral (conditional anti-windup); no feedforward (the
+    final firmware's lambda is 0)."""
+
+    name: str = "thesis"
+
+    def initial_memory(self) -> np.ndarray:
+        return np.zeros(1)                                  # pitch error integral, deg s
+
+    def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
+        roll, pitch = np.asarray(THESIS_ROLL_DEG), np.asarray(THESIS_PITCH_DEG)
+        at = sample.position[:2]
+        k_roll = bilinear(roll, pitch, thesis_reference.K_ROLL, at[0], at[1])
+        k_pitch = bilinear(roll, pitch, thesis_reference.K_PITCH, at[0], at[1])
+        e, v = sample.reference[:2] - sample.position[:2], sample.velocity[:2]
+        u = np.zeros(3)
+        u[0] = -(k_roll[0] * e[0] + k_roll[1] * v[0])
+        law = lambda E: -(k_pitch[0] * e[1] + k_pitch[1] * v[1] + k_pitch[2] * E)  # noqa: E731
+        u[1], integral = _conditional_integral(memory[0], e[1], sample.period, law, sample.pwm_limit[1])
+        u[2] = _insertion(sample)
+        return u, np.array([integral])
+
+
+def make_controller(name: str, schedule: GainSchedule | None = None) -> Controller:
     """The controller called ``name`` (one of :data:`CONTROLLERS`); the model-based ones need the
     gain schedule (:func:`rcm_kin.control.gain_schedule.schedule_gains`)."""
     if name == "p":
         return PController()
     if name == "pid":
         return PIDController()
+    if name == "thesis":
+        return ThesisController()
     if name not in CONTROLLERS:
         raise RcmKinError(f"unknown controller '{name}' (choose from {', '.join(CONTROLLERS)})")
     if schedule is None:

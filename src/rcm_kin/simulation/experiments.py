@@ -8,6 +8,9 @@ schedule`` does.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Callable
+
 import numpy as np
 
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, schedule_gains
@@ -18,7 +21,7 @@ from rcm_kin.robot import load_robot
 from rcm_kin.simulation.controllers import make_controller
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import SimulationResult, simulate
-from rcm_kin.simulation.plant import period_map
+from rcm_kin.simulation.plant import drive_train_plant, period_map
 from rcm_kin.simulation.references import EXPERIMENTS, Reference, sine_reference, step_reference, target_reference
 
 DEFAULT_DURATION = {"sine": 6.0, "step": 3.0, "target": None}   # s; None: the recording's length
@@ -44,17 +47,33 @@ def _plant_and_schedule(params: DriveParameters, period: float, substeps: int):
     key = repr((params, period, substeps))
     if key not in _BUILT:
         psm = load_robot("psm")
-        plant = period_map(driven_dynamics(psm, params).forward, period, substeps)
+        if params.drive_train:
+            plant = drive_train_plant(psm, params, period)
+        else:
+            smooth = period_map(driven_dynamics(psm, params).forward, period, substeps)
+            plant = SmoothPlant(lambda x, u: np.array(smooth(x, u)).ravel())
         schedule = schedule_gains(driven_dynamics(psm, params, coulomb=False), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
         _BUILT[key] = plant, schedule
     return _BUILT[key]
 
 
+@dataclass(frozen=True)
+class SmoothPlant:
+    """The smooth model's period map with the loop's plant interface (``initial``, ``step``)."""
+
+    step: Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+    def initial(self, position) -> np.ndarray:
+        return np.r_[np.asarray(position, dtype=float), np.zeros(3)]
+
+
 def psm_plant_and_schedule(params: DriveParameters | None = None, period: float = FirmwareSettings().period,
                            substeps: int = 4):
-    """``(step(x, u) -> x, GainSchedule)`` of the PSM with ``params`` (default: shipped set)."""
-    plant, schedule = _plant_and_schedule(params or load_drive_parameters(), period, substeps)
-    return (lambda x, u: np.array(plant(x, u)).ravel()), schedule
+    """``(plant, GainSchedule)`` of the PSM with ``params`` (default: shipped set). The plant has
+    ``step(x, u) -> x`` and ``initial(q) -> x``: the identified drive trains
+    (:class:`~rcm_kin.simulation.plant.DriveTrainPlant`) when ``params`` has them, else the
+    smooth model."""
+    return _plant_and_schedule(params or load_drive_parameters(), period, substeps)
 
 
 def run_experiment(experiment: str, controller: str, duration: float | None = None,
@@ -62,7 +81,7 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
                    trajectory=None, seed: int = 0, progress: bool = False) -> SimulationResult:
     """Simulate one thesis experiment with one controller (names as in the CLI)."""
     settings = settings or FirmwareSettings()
-    step, schedule = psm_plant_and_schedule(params, settings.period)
+    plant, schedule = psm_plant_and_schedule(params, settings.period)
     reference = experiment_reference(experiment, settings.period, duration, trajectory)
-    return simulate(step, make_controller(controller, schedule), reference, settings, seed=seed,
-                    progress=progress)
+    return simulate(plant.step, make_controller(controller, schedule), reference, settings, seed=seed,
+                    progress=progress, initial=plant.initial)

@@ -1,5 +1,7 @@
 """What the PSM microcontroller sees and sends, as the thesis firmware does it.
 
+The defaults are the flashed firmware's numbers (:mod:`rcm_kin.hardware`):
+
 - Encoders: the angle is a whole number of counts (roll 0.009 deg, pitch 0.0135 deg,
   insertion 0.030 mm per count), optionally with random count noise.
 - Velocity: backward difference of the measured angle over the period; the roll's is
@@ -14,11 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rcm_kin.control.stability import FIRMWARE_PERIOD, ROLL_FILTER
 from rcm_kin.errors import RcmKinError
-
-ENCODER_COUNT = np.array([0.009, 0.0135, 0.030e-3])   # deg, deg, m per count (roll, pitch, insertion)
-PWM_LIMIT = np.array([100.0, 150.0, 100.0])            # firmware saturation, counts
+from rcm_kin.hardware import DRIVER_PWM_RANGE, ENCODER_COUNT, FIRMWARE_PERIOD, PWM_LIMIT, ROLL_FILTER
 
 
 @dataclass(frozen=True)
@@ -37,8 +36,8 @@ class FirmwareSettings:
         counts = np.asarray(self.encoder_count, dtype=float)
         if not (np.isfinite(self.period) and self.period > 0):
             raise RcmKinError(f"the controller period must be a positive number of seconds, got {self.period}")
-        if limits.shape != (3,) or np.any(~(limits > 0)) or np.any(limits > 255):
-            raise RcmKinError(f"PWM limits are 3 values in (0, 255] counts, got {limits.tolist()}")
+        if limits.shape != (3,) or np.any(~(limits > 0)) or np.any(limits > DRIVER_PWM_RANGE):
+            raise RcmKinError(f"PWM limits are 3 values in (0, {DRIVER_PWM_RANGE:g}] counts, got {limits.tolist()}")
         if counts.shape != (3,) or np.any(~(counts >= 0)):
             raise RcmKinError(f"encoder resolutions are 3 values >= 0, got {counts.tolist()}")
         if not (0 <= self.roll_filter < 1) or not (self.noise_counts >= 0):

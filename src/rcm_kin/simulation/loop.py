@@ -14,13 +14,12 @@ from typing import Callable
 import numpy as np
 from tqdm import tqdm
 
-from rcm_kin.control.gain_schedule import DEG
 from rcm_kin.errors import RcmKinError
+from rcm_kin.simulation.controllers import Controller, Sample
 from rcm_kin.simulation.firmware import FirmwareSettings, encoder_reading, sent_pwm, velocity_estimate
-from rcm_kin.simulation.controllers import Sample
 from rcm_kin.simulation.references import Reference
 
-FIRMWARE_SCALE = np.array([DEG, DEG, 1.0])     # (rad, rad, m) -> (deg, deg, m)
+FIRMWARE_SCALE = np.array([np.degrees(1.0), np.degrees(1.0), 1.0])     # (rad, rad, m) -> (deg, deg, m)
 AXES = ("roll", "pitch")
 
 
@@ -53,11 +52,13 @@ def si_units(q: np.ndarray) -> np.ndarray:
     return np.asarray(q) / FIRMWARE_SCALE
 
 
-def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller, reference: Reference,
+def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: Controller, reference: Reference,
              settings: FirmwareSettings | None = None, seed: int = 0, settle: float = 1.0,
-             progress: bool = False) -> SimulationResult:
-    """Run ``controller`` on the plant ``step(x, u) -> x`` (one period, ``x = [q; v]`` SI with the
-    driven joints first) along ``reference``, from rest at the first reference pose. Deterministic for a given ``seed`` (which only drives the optional encoder noise)."""
+             progress: bool = False, initial: Callable[[np.ndarray], np.ndarray] | None = None) -> SimulationResult:
+    """Run ``controller`` on the plant ``step(x, u) -> x`` (one period; ``x[:3]`` the positions the
+    encoders see, SI) along ``reference``, from rest at the first reference pose: ``initial(q)``
+    when given, else ``x = [q; 0]``.
+    Deterministic for a given ``seed`` (which only drives the optional encoder noise)."""
     settings = settings or FirmwareSettings()
     if reference.time.size < 2 or not np.isclose(reference.time[1] - reference.time[0], settings.period, rtol=1e-9):
         raise RcmKinError("the reference must be sampled at the controller period")
@@ -65,7 +66,7 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller, r
         raise RcmKinError(f"the settling time must be >= 0 s, got {settle}")
     rng = np.random.default_rng(seed)
     n_settle, n = int(round(settle / settings.period)), reference.time.size
-    x = np.r_[reference.position[0], np.zeros(3)]
+    x = initial(reference.position[0]) if initial else np.r_[reference.position[0], np.zeros(3)]
     ref_fw, vel_fw, acc_fw = (firmware_units(a) for a in (reference.position, reference.velocity,
                                                             reference.acceleration))
     zero = np.zeros(3)

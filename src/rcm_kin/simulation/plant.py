@@ -1,33 +1,86 @@
-"""The plant over one controller period: fixed-step RK4 with the PWM held (zero-order hold).
+"""The plant over one controller period, with the PWM held (zero-order hold).
 
-Classical RK4 with ``substeps`` equal steps per period ``T``. The stiffest term of the PSM's
-driven joints is the smoothed Coulomb friction at rest (roll: slope ``F_c / v_c`` of 340
-N m s/rad on 0.54 kg m^2, 630 1/s; pitch 170 1/s; the insertion loop ~120 rad/s), which gives
-``|lambda| h <= 0.4`` at 400 Hz and 4 substeps, inside RK4's stability region (2.8).
-``tests/test_simulation.py`` compares one period with DOP853 at rtol 1e-11: within 1e-7 rad in
-position and 2e-4 rad/s in velocity, the largest where a velocity reverses through the friction.
+Two plants: the smooth model (:func:`period_map`), and the identified drive trains with
+friction that sticks (:class:`DriveTrainPlant`, time-stepped as :mod:`rcm_kin.dynamics.stick_slip`).
+
+Smooth model: fixed-step RK4 with the PWM held.
+
+Classical RK4 (:func:`rcm_kin.symbolic.integrators.rk4_map`) with ``substeps`` equal steps per
+period ``T``. The stiffest term of the PSM's driven joints is the smoothed Coulomb friction at
+rest (roll: slope ``F_c / v_c`` of 340 N m s/rad on 0.54 kg m^2, 630 1/s; pitch 170 1/s; the
+insertion loop ~120 rad/s), which gives ``|lambda| h <= 0.4`` at 400 Hz and 4 substeps, inside
+RK4's stability region (2.8). ``tests/test_simulation.py`` compares one period with DOP853 at
+rtol 1e-11: within 1e-7 rad in position and 2e-4 rad/s in velocity, the largest where a
+velocity reverses through the friction.
 """
 
 from __future__ import annotations
 
-import casadi as ca
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
+import casadi as ca
+import numpy as np
+
+from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, with_joint
+from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
+from rcm_kin.dynamics.stick_slip import AxisFriction, advance_axis
 from rcm_kin.errors import RcmKinError
+from rcm_kin.symbolic.integrators import rk4_map
+
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 
 def period_map(forward: ca.Function, period: float, substeps: int = 4) -> ca.Function:
-    """``(x, u) -> x(T)``: ``forward(x, u) -> xdot`` integrated over one period ``T`` (s) by
-    ``substeps`` RK4 steps with ``u`` constant. Returns a CasADi Function (NumPy in, DM out)."""
+    """``(x, u) -> x(T)``: ``forward(x, u) -> xdot`` (``x = [q; v]`` SI, ``u`` PWM counts)
+    integrated over one period ``T`` (s) by ``substeps`` RK4 steps with ``u`` constant. Returns a
+    CasADi Function (NumPy in, DM out)."""
     if not (period > 0 and substeps >= 1):
         raise RcmKinError(f"the period must be positive and substeps >= 1, got {period} s and {substeps}")
-    x = ca.SX.sym("x", forward.size1_in(0))
-    u = ca.SX.sym("u", forward.size1_in(1))
-    h = period / substeps
-    xk = x
-    for _ in range(substeps):
-        k1 = forward(xk, u)
-        k2 = forward(xk + h / 2 * k1, u)
-        k3 = forward(xk + h / 2 * k2, u)
-        k4 = forward(xk + h * k3, u)
-        xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return ca.Function("period_map", [x, u], [xk], ["x", "u"], ["x_next"])
+    return rk4_map(forward, period, substeps, "period_map")
+
+
+@dataclass(frozen=True)
+class DriveTrainPlant:
+    """The driven joints with the identified stick-slip drive trains
+    (:mod:`rcm_kin.dynamics.stick_slip`), one controller period per :meth:`step`.
+
+    State ``x`` (15,): rows ``[theta, w, q, v, z]`` of (roll, pitch, insertion) flattened, so
+    ``x[:3]`` is what the encoders see (the motor angle over the ratio, SI) and ``x[3:6]`` its
+    rate; ``q, v`` are the link's, ``z`` the presliding anchors. Each period the rigid-body mass
+    matrix and bias forces (gravity, Coriolis) are evaluated at the period's start and held; the
+    axes are coupled through them, not through the off-diagonal inertia within a period (which
+    the drive inertia and friction dominate over 2.5 ms)."""
+
+    model: DrivenDynamics                 # rigid body + drive, without identified extras
+    friction: np.ndarray                  # (3, n) AxisFriction vectors, DRIVEN order
+    period: float                         # s
+
+    def initial(self, position) -> np.ndarray:
+        """At rest at ``position`` (rad, rad, m) with relaxed springs."""
+        q = np.asarray(position, dtype=float)
+        return np.concatenate([q, np.zeros(3), q, np.zeros(3), q])
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        state = np.array(x, dtype=float).reshape(5, 3)
+        q, v = state[2], state[3]
+        M = np.array(self.model.mass_matrix(q))
+        bias = np.array(self.model.bias(q, v)).ravel()
+        d = self.model.drive
+        for i in range(3):
+            axis = np.ascontiguousarray(state[:, i])
+            advance_axis(self.friction[i], d.input_gain[i], d.damping[i], d.reflected_inertia[i], bias[i],
+                         M[i, i] - d.reflected_inertia[i], float(u[i]), axis, self.period)
+            state[:, i] = axis
+        return state.ravel()
+
+
+def drive_train_plant(robot: Robot, params: DriveParameters, period: float) -> DriveTrainPlant:
+    """The PSM plant with ``params``' identified drive trains (joints without one: rigid, no
+    friction beyond the drive's back-EMF)."""
+    base = params
+    for joint in DRIVEN:
+        base = with_joint(base, joint, extra_inertia=0.0, viscous=0.0, coulomb=0.0)
+    friction = np.stack([params.drive_train.get(j, AxisFriction()).vector() for j in DRIVEN])
+    return DriveTrainPlant(driven_dynamics(robot, base, coulomb=False), friction, period)

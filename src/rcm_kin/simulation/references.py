@@ -9,12 +9,18 @@ import csv
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from rcm_kin.control.thesis_reference import SINE_AMPLITUDE_DEG, SINE_CYCLE_S
 from rcm_kin.errors import RcmKinError
-from rcm_kin.kinematics.teleop import HOME_INSERTION, default_teleop_map, teleop_joint_targets
+from rcm_kin.hardware import HOME_INSERTION
+from rcm_kin.kinematics.teleop import default_teleop_map, teleop_joint_targets
+
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 EXPERIMENTS = ("sine", "step", "target")
 BUNDLED_TRAJECTORY = "figure_eight.csv"
@@ -34,9 +40,10 @@ def _samples(duration: float, period: float) -> np.ndarray:
     return np.arange(int(round(duration / period)) + 1) * period
 
 
-def sine_reference(duration: float, period: float, amplitude_deg=(20.0, 15.0), cycle: float = 3.0,
+def sine_reference(duration: float, period: float, amplitude_deg=SINE_AMPLITUDE_DEG, cycle: float = SINE_CYCLE_S,
                    insertion: float = HOME_INSERTION) -> Reference:
-    """The thesis sinusoid: roll 20 deg and pitch 15 deg amplitude, 3 s period, together."""
+    """The thesis sinusoid (:mod:`rcm_kin.control.thesis_reference`): roll 20 deg and pitch 15 deg
+    amplitude, 3 s period, together."""
     t = _samples(duration, period)
     w = 2 * np.pi / cycle
     amp = np.radians(np.r_[amplitude_deg, 0.0])
@@ -77,7 +84,8 @@ def load_mtm_trajectory(path: str | Path | None = None) -> tuple[np.ndarray, np.
     return data[keep, 0] - data[0, 0], data[keep, 1:]
 
 
-def target_reference(psm, duration: float | None, period: float, trajectory: str | Path | None = None) -> Reference:
+def target_reference(psm: Robot, duration: float | None, period: float,
+                     trajectory: str | Path | None = None) -> Reference:
     """The target-following experiment: MTM displacements through the teleoperation map and the
     PSM IK, splined (C2) at the controller rate; ``duration`` None = the recording's length."""
     t_raw, displacement = load_mtm_trajectory(trajectory)

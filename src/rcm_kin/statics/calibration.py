@@ -20,13 +20,14 @@ The model ``pwm_j = pwm_per_torque_j * g_j(q; offsets)`` is fitted by nonlinear 
 A drive-link z offset is left out: it acts on pitch like the CAD gravity itself and trades
 off exactly against ``volts_per_pwm``. The insertion is not measured
 in these logs (a wrong conversion, see the data README): the poses are taken at the home
-insertion of 80 mm.
+insertion (:data:`rcm_kin.hardware.HOME_INSERTION`, 80 mm).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -34,9 +35,12 @@ from scipy.optimize import least_squares
 from rcm_kin.dynamics.drive import DriveParameters, drive_effort, with_joint
 from rcm_kin.dynamics.gravity import gravity_batch
 from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry, step_index
 
-HOLD_INSERTION = 0.080     # m, assumed for every calibration pose
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
+
 HOLD_WINDOW = 0.25         # s before the step
 PARAMETERS = ("volts_per_pwm", "roll_link.y", "roll_link.z", "drive_link.x")
 UNITS = ("V/count", "kg m", "kg m", "kg m")
@@ -88,11 +92,11 @@ def holding_points(paths) -> tuple[HoldingPoint, ...]:
     return tuple(holding_point(load_telemetry(p)) for p in paths)
 
 
-def _poses(robot, points) -> np.ndarray:
+def _poses(robot: Robot, points) -> np.ndarray:
     Q = np.zeros((len(points), robot.nq))
     Q[:, 0] = [p.roll for p in points]
     Q[:, 1] = [p.pitch for p in points]
-    Q[:, 2] = HOLD_INSERTION
+    Q[:, 2] = HOME_INSERTION
     return Q
 
 
@@ -106,13 +110,13 @@ def apply_values(base: DriveParameters, values) -> DriveParameters:
     return DriveParameters(params.joints, offsets, params.source)
 
 
-def predict_pwm(robot, params: DriveParameters, points) -> np.ndarray:
+def predict_pwm(robot: Robot, params: DriveParameters, points) -> np.ndarray:
     """(n, 2) holding PWM of roll and pitch at the points' poses."""
     tau = gravity_batch(robot, _poses(robot, points), params.gravity_offsets)
     return drive_effort(params, tau[:, :3]).pwm[:, :2]
 
 
-def calibrate(robot, base: DriveParameters, points) -> CalibrationResult:
+def calibrate(robot: Robot, base: DriveParameters, points) -> CalibrationResult:
     """Least-squares fit of PARAMETERS to measured holding points (at least 4)."""
     points = tuple(points)
     if len(points) < 4:

@@ -17,6 +17,7 @@ transmissions are weighed by what their motors must do.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.optimize import lsq_linear
@@ -24,6 +25,10 @@ from scipy.optimize import lsq_linear
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.gravity import gravity_batch, point_mass_gravity_batch
 from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import HOME_INSERTION
+
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -37,15 +42,24 @@ class CounterweightDesign:
     peak_pwm: np.ndarray   # (2,) largest |PWM| (both joints, whatever the weights)
 
 
-def workspace_grid(robot, roll_deg=(-30, 30, 13), pitch_deg=(-30, 30, 13), insertion: float = 0.080) -> np.ndarray:
-    """(N, nq) poses on a roll x pitch grid (degrees LO, HI, N) at one insertion (m)."""
-    r, p = np.meshgrid(np.radians(np.linspace(*roll_deg)), np.radians(np.linspace(*pitch_deg)))
+def workspace_grid(robot: Robot, roll_deg=None, pitch_deg=None, insertion: float = HOME_INSERTION,
+                   points: int = 13) -> np.ndarray:
+    """(N, nq) poses on a roll x pitch grid at one insertion (m). ``roll_deg`` and ``pitch_deg``
+    are (LO, HI, N) in degrees; by default the joint's whole range (its URDF limits) in ``points``."""
+
+    def axis(spec, joint: str) -> np.ndarray:
+        if spec is None:
+            i = robot.actuated.index(joint)
+            return np.linspace(robot.lower[i], robot.upper[i], points)
+        return np.radians(np.linspace(*spec))
+
+    r, p = np.meshgrid(axis(roll_deg, "roll"), axis(pitch_deg, "pitch"))
     Q = np.zeros((r.size, robot.nq))
     Q[:, 0], Q[:, 1], Q[:, 2] = r.ravel(), p.ravel(), insertion
     return Q
 
 
-def design_counterweights(robot_without, drive: DriveParameters, Q, main_mass: float, dpm_mass: float,
+def design_counterweights(robot_without: Robot, drive: DriveParameters, Q, main_mass: float, dpm_mass: float,
                           weights=(1.0, 1.0), dpm_position: tuple[float, float] | None = None,
                           max_distance: float = 0.30) -> CounterweightDesign:
     """Positions of counterweights of the given masses (kg) minimising the weighted RMS holding
@@ -84,3 +98,36 @@ def design_counterweights(robot_without, drive: DriveParameters, Q, main_mass: f
     pwm = (A @ sol.x - b).reshape(-1, 2)
     return CounterweightDesign(main_mass, float(r0), dpm_mass, float(np.hypot(x1, z1)), float(np.arctan2(x1, z1)),
                                np.sqrt(np.mean(pwm**2, axis=0)), np.max(np.abs(pwm), axis=0))
+
+
+@dataclass(frozen=True)
+class OsmdvDesigns:
+    """Counterweights of the osMDV masses positioned by :func:`design_counterweights`."""
+
+    roll_only: CounterweightDesign        # the DPM counterweight where osMDV put it, the main one for the roll
+    roll_and_pitch: CounterweightDesign   # both positioned for roll and pitch together
+    roll_range_deg: tuple[float, float]   # the design grid (deg)
+    pitch_range_deg: tuple[float, float]
+    points: int                           # per axis
+    insertion: float                      # m
+
+
+def osmdv_designs(drive: DriveParameters, points: int = 13) -> OsmdvDesigns:
+    """The osMDV counterweight masses (:data:`rcm_kin.hardware.MAIN_COUNTERWEIGHT`,
+    :data:`~rcm_kin.hardware.DPM_COUNTERWEIGHT`) positioned on the CAD model: ``drive``'s joints
+    with its calibrated gravity offsets left out, over the joints' whole roll x pitch range at
+    the home insertion, ``points`` per axis. Once holding the DPM counterweight where osMDV
+    built it and weighing the roll alone (what osMDV balanced), once designing both for roll
+    and pitch."""
+    from rcm_kin.hardware import DPM_COUNTERWEIGHT, MAIN_COUNTERWEIGHT
+    from rcm_kin.robot import load_robot
+
+    without = load_robot("psm", counterweights=False)
+    cad = DriveParameters(drive.joints, {})
+    Q = workspace_grid(without, points=points)
+    main_mass, (dpm_mass, dpm_distance, dpm_angle) = MAIN_COUNTERWEIGHT[0], DPM_COUNTERWEIGHT
+    roll_only = design_counterweights(without, cad, Q, main_mass, dpm_mass, weights=(1.0, 0.0),
+                                      dpm_position=(dpm_distance, dpm_angle))
+    both = design_counterweights(without, cad, Q, main_mass, dpm_mass)
+    span = [(float(np.degrees(Q[:, k].min())), float(np.degrees(Q[:, k].max()))) for k in (0, 1)]
+    return OsmdvDesigns(roll_only, both, span[0], span[1], points, float(Q[0, 2]))

@@ -11,12 +11,16 @@ from __future__ import annotations
 import csv
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rcm_kin.dynamics.drive import DRIVEN, DriveEffort, DriveParameters, drive_effort
+from rcm_kin.dynamics.drive import DRIVEN, DriveEffort, DriveParameters, drive_effort, load_drive_parameters
 from rcm_kin.dynamics.gravity import gravity_batch
 from rcm_kin.errors import RcmKinError
+
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -25,6 +29,25 @@ class GravityMap:
     pitch_deg: np.ndarray       # (P,)
     insertion: np.ndarray       # (I,) m
     effort: DriveEffort         # arrays of shape (P, R, I, 3): pitch rows, roll columns
+
+
+@dataclass(frozen=True)
+class HoldingEffort:
+    """Gravity load at one pose: every actuated joint, and for the PSM its drives."""
+
+    tau: np.ndarray                 # N m (N for prismatic), actuated order
+    drive: DriveEffort | None       # PSM only: the DRIVEN joints' voltage, PWM, saturation
+
+
+def holding_effort(robot, q, params: str | Path | None = None) -> HoldingEffort:
+    """Holding effort at actuated ``q``. The PSM's includes its calibrated gravity offsets and drive
+    model from the parameter TOML ``params`` (default: the shipped set), read for the PSM only."""
+    q = np.asarray(q, dtype=float)
+    if robot.name != "psm":
+        return HoldingEffort(gravity_batch(robot, q[None])[0], None)
+    drive = load_drive_parameters(params)
+    tau = gravity_batch(robot, q[None], drive.gravity_offsets)[0]
+    return HoldingEffort(tau, drive_effort(drive, tau[:3]))
 
 
 def parse_range(text: str, what: str) -> tuple[float, float, int]:
@@ -39,7 +62,8 @@ def parse_range(text: str, what: str) -> tuple[float, float, int]:
     return lo, hi, n
 
 
-def gravity_map(robot, drive: DriveParameters, roll_deg, pitch_deg, insertion, progress: bool = False) -> GravityMap:
+def gravity_map(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg, insertion,
+                progress: bool = False) -> GravityMap:
     """Holding effort over the grid roll x pitch x insertion (degrees, degrees, metres)."""
     roll_deg, pitch_deg, insertion = (np.atleast_1d(np.asarray(x, dtype=float)) for x in (roll_deg, pitch_deg, insertion))
     for name, values, unit in (("roll", np.radians(roll_deg), "deg"), ("pitch", np.radians(pitch_deg), "deg"),
@@ -72,15 +96,18 @@ def write_csv(gmap: GravityMap, path: str | Path) -> Path:
     return path
 
 
-def write_gravity_maps(robot, drive: DriveParameters, roll_deg, pitch_deg, insertion: float, out: Path,
-                       progress: bool = False) -> tuple[GravityMap, list[Path]]:
-    """The roll x pitch map at one insertion (m) and an insertion sweep at roll = pitch = 0, as
-    CSV and figures in folder ``out``: torque_map.csv/.png, trend_curves.png, insertion_map.csv/.png."""
+def write_gravity_maps(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg, insertion: float, out: Path,
+                       progress: bool = False, sweep_roll_deg=(0.0, 20.0),
+                       sweep_pitch_deg=(-20.0, 0.0, 20.0)) -> tuple[GravityMap, list[Path]]:
+    """The roll x pitch map at one insertion (m) and an insertion sweep over the whole insertion
+    range at the poses ``sweep_roll_deg`` x ``sweep_pitch_deg`` (at roll = pitch = 0 the shaft
+    hangs through both axes and nothing depends on the insertion), as CSV and figures in folder
+    ``out``: torque_map.csv/.png, trend_curves.png, insertion_map.csv/.png."""
     from rcm_kin.report.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
 
     gmap = gravity_map(robot, drive, roll_deg, pitch_deg, [insertion], progress=progress)
     i = robot.actuated.index("insertion")
-    sweep = gravity_map(robot, drive, [0.0], [0.0], np.linspace(robot.lower[i], robot.upper[i], 81))
+    sweep = gravity_map(robot, drive, sweep_roll_deg, sweep_pitch_deg, np.linspace(robot.lower[i], robot.upper[i], 81))
     files = [write_csv(gmap, out / "torque_map.csv"), effort_heatmaps(gmap, out / "torque_map.png"),
              thesis_trend_curves(gmap, out / "trend_curves.png"),
              write_csv(sweep, out / "insertion_map.csv"), insertion_curves(sweep, out / "insertion_map.png")]

@@ -4,6 +4,7 @@ picture for documents, where a WebGL page cannot go."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -14,6 +15,9 @@ import pinocchio as pin  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
 from rcm_kin.closure.reduced import tree_configuration  # noqa: E402
+
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
 _CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) / 2
 _CUBE_FACES = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]]
@@ -42,7 +46,7 @@ def _faces(geometry) -> list[np.ndarray]:
     return []
 
 
-def robot_drawing(robot, q, path: str | Path, title: str = "", view=(20.0, -60.0)) -> Path:
+def robot_drawing(robot: Robot, q, path: str | Path, title: str = "", view=(20.0, -60.0)) -> Path:
     """Draw ``robot`` at actuated ``q`` (rad, m) in its base frame (z up) and save a PNG."""
     visual = pin.buildGeomFromUrdf(robot.tree, str(robot.description.urdf), pin.GeometryType.VISUAL)
     data = visual.createData()

@@ -9,6 +9,7 @@ A view is served live (``meshcat.Visualizer()`` starts the meshcat server) or ke
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 import meshcat
@@ -23,8 +24,11 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.visualization.offline import OfflineWindow
 
+if TYPE_CHECKING:
+    from rcm_kin.robot import Robot
 
-def robot_view(robot, window=None, frames: tuple[str, ...] = ()) -> MeshcatVisualizer:
+
+def robot_view(robot: Robot, window=None, frames: tuple[str, ...] = ()) -> MeshcatVisualizer:
     """A Pinocchio meshcat visualizer of ``robot`` (offline unless a ``window`` is given, e.g. a
     live ``meshcat.Visualizer().window``), showing ``frames`` (names of the robot's frames of
     interest) as axis triads."""
@@ -40,12 +44,12 @@ def robot_view(robot, window=None, frames: tuple[str, ...] = ()) -> MeshcatVisua
     return viz
 
 
-def show(viz: MeshcatVisualizer, robot, q) -> None:
+def show(viz: MeshcatVisualizer, robot: Robot, q) -> None:
     """Place the robot at actuated ``q`` (rad, m)."""
     viz.display(tree_configuration(robot, robot.check_q(q, allow_short=True)))
 
 
-def animate(viz: MeshcatVisualizer, robot, Q: np.ndarray, period: float, every: int = 1) -> None:
+def animate(viz: MeshcatVisualizer, robot: Robot, Q: np.ndarray, period: float, every: int = 1) -> None:
     """Record the actuated trajectory ``Q`` (N, nq) sampled every ``period`` s as a meshcat
     animation (every ``every``-th sample), played in the page's controls."""
     Q = np.atleast_2d(Q)
@@ -80,7 +84,7 @@ def scalar_trail(viz: MeshcatVisualizer, name: str, points: np.ndarray, values: 
     return low, high
 
 
-def frame_path(robot, Q: np.ndarray, frame: str) -> np.ndarray:
+def frame_path(robot: Robot, Q: np.ndarray, frame: str) -> np.ndarray:
     """Positions (N, 3) m of ``frame`` along the actuated trajectory ``Q``."""
     return np.array([frame_placement(robot, q, frame).translation for q in np.atleast_2d(Q)])
 

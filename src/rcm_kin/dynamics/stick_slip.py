@@ -1,0 +1,221 @@
+"""One driven axis with friction that really sticks: the drive-train model identified on the logs.
+
+Per driven joint (joint-referred SI: rad, N m, kg m^2), with the encoder on the motor:
+
+    motor:  J_m  w' = k_u u_d - (k_e + b_m) w - f_m - tau_c              (drive side)
+    cable:  tau_c = k_c (theta - q) + d_c (w - v)                         (capstan compliance)
+    link:   (M_ii(q) + J_x) v' = tau_c - g_i(q) - g_0 - b v - f_l - tau_p (link side)
+    presliding spring: tau_p = k_p(q) (q - z), |tau_p| <= F_p, z moves when the bound is hit
+    measured angle: theta (motor angle / gear ratio)
+
+- ``u_d``: the PWM after an optional driver dead-band ``u_d = sign(u) max(|u| - d, 0)``;
+  ``k_u``, ``k_e`` (back-EMF damping) and ``J_m`` (reflected rotor inertia) are the drive's.
+- ``f_l``, ``f_m``: set-valued friction. At rest a side stays at rest while the force on it is
+  within the static friction ``F_s``; sliding, ``f = sign(v) (F_c + (F_s - F_c) exp(-(v/v_s)^2))``
+  (Stribeck) plus viscous ``b v``. The motor side has Coulomb friction only.
+- ``tau_p``: an elasto-plastic (Maxwell-slip) spring: stiffness ``k_p(q) = k_p0 exp(s q)``
+  anchored where the axis last came to rest, slipping at ``F_p``. This is what the roll steps
+  show: each one behaves like a spring anchored at the angle where it started.
+- ``g_i``, ``M_ii``: gravity and inertia of the closed chain along this axis (the rigid-body
+  model, tabulated over the axis angle), ``g_0`` a constant offset.
+
+Every term can be switched off (:data:`TERMS`); with the cable rigid (``cable_stiffness`` 0,
+the default) motor and link are one body and their frictions add.
+
+Integration: time stepping with the friction solved implicitly (Moreau's scheme): each step
+``h`` the velocity update ``(J + h B) v+ = J v + h F - h f`` takes the friction force ``f``
+from its set, so a side that would cross zero velocity within the step stops exactly, and a
+side at rest stays at rest while ``|J v + h F| <= h F_s``. Unlike a smoothed (tanh) law this
+really sticks, and unlike Karnopp's model it needs no stick band; unlike LuGre it adds no
+stiff bristle state. Its error is first order in ``h`` (a stop is found within one step); the
+tests check a block under Coulomb friction against its exact stopping time and position.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+from typing import TYPE_CHECKING
+
+import numba
+import numpy as np
+
+if TYPE_CHECKING:
+    from rcm_kin.dynamics.state_space import DrivenDynamics
+
+TERMS = ("stiction", "presliding", "two_mass", "deadband", "gravity_offset")
+SUBSTEP = 2.5e-4   # s: integration step (the fastest mode, the motor on the cable, stays well resolved)
+
+
+@dataclass(frozen=True)
+class AxisFriction:
+    """Identified drive-train parameters of one axis (joint-referred SI; PWM in counts)."""
+
+    extra_inertia: float = 0.0         # kg m^2 the CAD lacks, on the link side
+    viscous: float = 0.0               # N m s/rad, link side (back-EMF damping is the drive's)
+    coulomb: float = 0.0               # N m, link side, sliding
+    static: float = 0.0                # N m, link side, break-away (below coulomb: taken as coulomb)
+    stribeck_velocity: float = 0.01    # rad/s
+    presliding_stiffness: float = 0.0  # N m/rad at angle 0
+    presliding_slope: float = 0.0      # 1/rad: k_p(q) = k_p0 exp(slope q)
+    presliding_force: float = 0.0      # N m: where the presliding spring slips
+    cable_stiffness: float = 0.0       # N m/rad; 0: rigid drive (one body)
+    cable_damping: float = 0.0         # N m s/rad
+    motor_coulomb: float = 0.0         # N m (joint-referred)
+    motor_viscous: float = 0.0         # N m s/rad (joint-referred), beyond back-EMF
+    deadband: float = 0.0              # PWM counts
+    gravity_offset: float = 0.0        # N m
+
+    def vector(self) -> np.ndarray:
+        return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
+
+    @classmethod
+    def from_vector(cls, values) -> "AxisFriction":
+        return cls(*(float(x) for x in values))
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+NAMES = tuple(f.name for f in fields(AxisFriction))
+TERM_PARAMETERS = {   # what switching a term off zeroes
+    "stiction": ("static", "stribeck_velocity"),
+    "presliding": ("presliding_stiffness", "presliding_slope", "presliding_force"),
+    "two_mass": ("cable_stiffness", "cable_damping", "motor_coulomb", "motor_viscous"),
+    "deadband": ("deadband",),
+    "gravity_offset": ("gravity_offset",),
+}
+
+
+@dataclass(frozen=True)
+class AxisPlant:
+    """What the rigid-body model and the drive give one axis at a held pose of the others."""
+
+    input_gain: float          # k_u: N m per PWM count, hardware sign included
+    back_emf: float            # k_t^2 N^2 / R: N m s/rad
+    rotor_inertia: float       # N^2 J_rotor: kg m^2
+    grid: np.ndarray           # (n,) uniform axis angles, rad
+    gravity: np.ndarray        # (n,) g_i over the grid, N m
+    inertia: np.ndarray        # (n,) M_ii over the grid (rotor excluded), kg m^2
+
+
+@numba.njit(cache=True)
+def _lookup(x, grid, table):
+    step = grid[1] - grid[0]
+    i = min(max(int((x - grid[0]) / step), 0), grid.size - 2)
+    w = (x - grid[i]) / step
+    return table[i] * (1.0 - w) + table[i + 1] * w
+
+
+@numba.njit(cache=True)
+def _implicit_friction(v, J, h, F, B, static, coulomb, stribeck):
+    """v after a step of ``J v' = F - B v - f`` with ``f`` from the friction set (implicit)."""
+    p = J * v + h * F
+    static = max(static, coulomb)
+    if v == 0.0:
+        if abs(p) <= h * static:
+            return 0.0
+        return (p - h * coulomb * np.sign(p)) / (J + h * B)
+    f = coulomb + (static - coulomb) * np.exp(-(v / stribeck) ** 2)
+    new = (p - h * f * np.sign(v)) / (J + h * B)
+    return 0.0 if new * v <= 0.0 else new
+
+
+@numba.njit(cache=True)
+def _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h):
+    """Advance ``state = [theta, w, q, v, z]`` by ``h`` with ``pwm`` held (in place)."""
+    Jx, b, Fc, Fs, vs, kp0, sp, Fp, kc, dc, Fcm, bm, dead, g0 = th[0], th[1], th[2], th[3], th[4], \
+        th[5], th[6], th[7], th[8], th[9], th[10], th[11], th[12], th[13]
+    u = np.sign(pwm) * max(abs(pwm) - dead, 0.0)
+    q = state[2]
+    kp = kp0 * np.exp(sp * q) if kp0 > 0.0 else 0.0
+    spring = kp * (q - state[4])
+    if kc > 0.0:   # two masses: motor, then link, each implicit in its own velocity
+        F = ku * u - kc * (state[0] - q) + dc * state[3]
+        state[1] = _implicit_friction(state[1], Jm, h, F, kemf + bm + dc + h * kc, Fcm, Fcm, 1.0)
+        state[0] += h * state[1]
+        F = kc * (state[0] - q) + dc * state[1] - gravity - g0 - spring
+        state[3] = _implicit_friction(state[3], inertia + Jx, h, F, b + dc + h * (kc + kp), Fs, Fc, vs)
+    else:          # rigid drive: one body, frictions added
+        F = ku * u - gravity - g0 - spring
+        state[3] = _implicit_friction(state[3], inertia + Jx + Jm, h, F, b + bm + kemf + h * kp,
+                                      Fs + Fcm, Fc + Fcm, vs)
+        state[1] = state[3]
+    state[2] += h * state[3]
+    if kc <= 0.0:
+        state[0] = state[2]
+    if kp > 0.0:   # the presliding spring slips at its bound
+        if kp * (state[2] - state[4]) > Fp:
+            state[4] = state[2] - Fp / kp
+        elif kp * (state[2] - state[4]) < -Fp:
+            state[4] = state[2] + Fp / kp
+
+
+@numba.njit(cache=True)
+def _run(th, ku, kemf, Jm, grid, gtab, Mtab, pwm, state, period, substeps):
+    """Measured angle (rad) after each held PWM sample of ``pwm``, from ``state`` (in place)."""
+    out = np.empty(pwm.size)
+    h = period / substeps
+    for k in range(pwm.size):
+        for _ in range(substeps):
+            _substep(state, th, pwm[k], _lookup(state[2], grid, gtab), _lookup(state[2], grid, Mtab),
+                     ku, kemf, Jm, h)
+        out[k] = state[0]
+    return out
+
+
+@numba.njit(cache=True)
+def _advance(th, ku, kemf, Jm, gravity, inertia, pwm, state, period, substeps):
+    h = period / substeps
+    for _ in range(substeps):
+        _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h)
+
+
+def advance_axis(friction_vector: np.ndarray, input_gain: float, back_emf: float, rotor_inertia: float,
+                 gravity: float, inertia: float, pwm: float, state: np.ndarray, period: float) -> None:
+    """Advance one axis's ``state`` (in place) over ``period`` s with ``pwm`` held and the
+    rigid-body ``gravity`` (N m, bias forces included) and link ``inertia`` (kg m^2) frozen over
+    the period: the closed-loop simulator's plant step. ``friction_vector``: :meth:`AxisFriction.vector`."""
+    substeps = max(1, int(np.ceil(period / SUBSTEP - 1e-9)))
+    _advance(friction_vector, input_gain, back_emf, rotor_inertia, gravity, inertia, pwm, state, period, substeps)
+
+
+def rest_state(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float) -> np.ndarray:
+    """``[theta, w, q, v, z]`` at rest with the measured angle ``angle`` (rad) under ``pwm``, in the
+    static equilibrium the axis came to rest in: the cable carries the motor torque, and what the
+    rigid-body gravity leaves unbalanced loads the presliding spring (up to its slip force; any
+    rest is left to the friction, which holds it within the static friction)."""
+    u = np.sign(pwm) * max(abs(pwm) - friction.deadband, 0.0)
+    torque = plant.input_gain * u
+    stretch = torque / friction.cable_stiffness if friction.cable_stiffness > 0 else 0.0
+    q = angle - stretch
+    anchor = q
+    if friction.presliding_stiffness > 0:
+        k = friction.presliding_stiffness * np.exp(friction.presliding_slope * q)
+        load = torque - np.interp(q, plant.grid, plant.gravity) - friction.gravity_offset
+        anchor = q - np.clip(load, -friction.presliding_force, friction.presliding_force) / k
+    return np.array([angle, 0.0, q, 0.0, anchor])
+
+
+def simulate_axis(friction: AxisFriction, plant: AxisPlant, pwm: np.ndarray, period: float,
+                  state: np.ndarray) -> np.ndarray:
+    """Measured angle (rad) after each of ``pwm``'s samples, each held for ``period`` s, from
+    ``state`` (see :func:`rest_state`; advanced in place)."""
+    substeps = max(1, int(np.ceil(period / SUBSTEP - 1e-9)))
+    return _run(friction.vector(), plant.input_gain, plant.back_emf, plant.rotor_inertia, plant.grid,
+                plant.gravity, plant.inertia, np.asarray(pwm, dtype=float), state, period, substeps)
+
+
+def axis_plant(model: "DrivenDynamics", joint: str, pose, span: float = np.radians(45.0),
+               points: int = 181) -> AxisPlant:
+    """The rigid-body model along ``joint`` with the other driven joints held at ``pose``
+    (rad, rad, m): gravity and inertia tabulated over ``+-span`` rad (rotor inertia apart).
+    ``model`` is built without identified extras (extra inertia, viscous friction 0), which
+    :class:`AxisFriction` carries."""
+    i = model.joints.index(joint)
+    grid = np.linspace(-span, span, points)
+    poses = np.repeat(np.asarray(pose, dtype=float)[None, :], points, axis=0)
+    poses[:, i] = grid
+    gravity = np.array(model.gravity.map(points)(poses.T))[i]
+    inertia = np.array([float(model.mass_matrix(p)[i, i]) for p in poses]) - model.drive.reflected_inertia[i]
+    return AxisPlant(float(model.drive.input_gain[i]), float(model.drive.damping[i]),
+                     float(model.drive.reflected_inertia[i]), grid, gravity, inertia)

@@ -1,0 +1,263 @@
+"""Identification of the drive-train model (:mod:`rcm_kin.dynamics.stick_slip`) from step logs.
+
+Each open-loop step log of one axis is simulated from rest at its measured angle under its
+recorded PWM (held per sample, as the driver holds it), the other axes held where the log
+measured them. The residual of a log is the simulated minus the measured angle divided by the
+measured travel's spread, so the sum of squares is ``sum_logs (1 - fit_percent / 100)^2``: every
+log counts as much as any other, however far it moved.
+
+The friction makes the output a non-smooth function of the parameters (a stop moves by a
+whole step when a parameter crosses a threshold), so a gradient method alone ends in the first
+local minimum: a differential-evolution search over the bounded (log-scaled where the range
+spans decades) parameters comes first, then ``least_squares`` polishes and gives the
+covariance of the estimate from its Jacobian.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import differential_evolution, least_squares
+
+from rcm_kin.dynamics.stick_slip import (NAMES, TERM_PARAMETERS, TERMS, AxisFriction, AxisPlant, axis_plant,
+                                         rest_state, simulate_axis)
+from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import HOME_INSERTION
+from rcm_kin.identification.records import resample
+from rcm_kin.identification.telemetry import load_telemetry, step_index
+
+PERIOD = 1e-3          # s: the logs are resampled to this grid (PWM held, angle interpolated)
+AFTER_STEP = 2.5       # s of each log used after the step
+# Bounds of the identified parameters (SI); "log" ones are searched on a log scale.
+BOUNDS = {
+    "extra_inertia": (0.0, 3.0), "viscous": (0.0, 30.0), "coulomb": (0.0, 3.0), "static": (0.0, 3.0),
+    "stribeck_velocity": (1e-3, 1.0, "log"), "presliding_stiffness": (1.0, 1e3, "log"),
+    "presliding_slope": (-8.0, 8.0), "presliding_force": (0.05, 5.0, "log"),
+    "cable_stiffness": (5.0, 1e4, "log"), "cable_damping": (0.0, 30.0), "motor_coulomb": (0.0, 1.0),
+    "motor_viscous": (0.0, 10.0), "deadband": (0.0, 8.0), "gravity_offset": (-1.0, 1.0),
+}
+DEFAULT_TERMS = ("stiction", "presliding", "deadband")
+
+
+@dataclass(frozen=True)
+class AxisLog:
+    """One step log of one axis, from the sample before the step, on a uniform grid."""
+
+    name: str
+    joint: str
+    period: float            # s
+    pwm: np.ndarray          # (n,) counts, held over each period
+    measured: np.ndarray     # (n,) rad, the logged angle
+    pose: np.ndarray         # (3,) driven joints (rad, rad, m) where the step started
+
+    @property
+    def time(self) -> np.ndarray:
+        return np.arange(self.pwm.size) * self.period
+
+    @property
+    def operating_point(self) -> tuple[float, float]:
+        """(roll, pitch) in degrees where the step started."""
+        return float(np.degrees(self.pose[0])), float(np.degrees(self.pose[1]))
+
+
+def axis_log(path: str | Path, joint: str, after: float = AFTER_STEP, rest_pitch: float | None = None) -> AxisLog:
+    """The step of ``joint`` in the telemetry log at ``path``. A log without the other axis's
+    angle (single-axis experiments) takes ``rest_pitch`` deg for it (default 0)."""
+    log = load_telemetry(path)
+    u, y, period = resample(log, joint, PERIOD)
+    start = step_index(u) - 1
+    stop = min(u.size, start + int(round(after / period)) + 1)
+    if stop - start < 50:
+        raise RcmKinError(f"{Path(path).name}: only {stop - start} samples after the {joint} step")
+    pose = np.array([0.0, 0.0, HOME_INSERTION])
+    for k, other in enumerate(("roll", "pitch")):
+        if other in log.position:
+            pose[k] = np.radians(np.mean(log.position[other]))
+        elif other != joint and rest_pitch is not None:
+            pose[k] = np.radians(rest_pitch)
+    i = ("roll", "pitch").index(joint)
+    pose[i] = np.radians(y[start])
+    return AxisLog(Path(path).name, joint, period, u[start:stop], np.radians(y[start:stop]), pose)
+
+
+def rest_windows(path: str | Path, joint: str, horizon: float = 0.6, min_rest: float = 0.05,
+                 rest_pitch: float | None = None) -> list[AxisLog]:
+    """Windows of ``horizon`` s of a closed-loop log, each starting where ``joint`` leaves a rest
+    (its angle unchanged for at least ``min_rest`` s): a state the model knows exactly (at rest,
+    the presliding spring anchored there), so the recorded PWM can drive the model open loop over
+    the window however unstable the axis is without its controller (a prediction-error form)."""
+    log = load_telemetry(path)
+    u, y, period = resample(log, joint, PERIOD)
+    still = np.r_[False, np.diff(y) == 0.0]
+    need, n = int(round(min_rest / period)), int(round(horizon / period))
+    run = np.zeros(u.size, dtype=int)
+    for k in range(1, u.size):
+        run[k] = run[k - 1] + 1 if still[k] else 0
+    starts = [k for k in range(u.size - n) if run[k] >= need and not still[k + 1]]
+    pose = np.array([0.0, 0.0, HOME_INSERTION])
+    other = "roll" if joint == "pitch" else "pitch"
+    if other in log.position:
+        pose[("roll", "pitch").index(other)] = np.radians(np.mean(log.position[other]))
+    elif rest_pitch is not None and other == "pitch":
+        pose[1] = np.radians(rest_pitch)
+    windows = []
+    for i, k in enumerate(starts):
+        at = pose.copy()
+        at[("roll", "pitch").index(joint)] = np.radians(y[k])
+        windows.append(AxisLog(f"{Path(path).name}@{k * period:.2f}s", joint, period, u[k:k + n + 1],
+                               np.radians(y[k:k + n + 1]), at))
+    return windows
+
+
+def predict_log(friction: AxisFriction, plant: AxisPlant, log: AxisLog) -> np.ndarray:
+    """Predicted measured angle (rad) over ``log``: from rest at its first angle under its first
+    PWM, then under its recorded PWM. The rest is taken as the static equilibrium the log shows:
+    the rigid-body gravity is shifted by the constant that makes the first PWM hold the first
+    angle, so the model's holding error (the calibration's, 1-2 PWM on roll) does not load the
+    presliding spring or the friction before the step (what the thesis's trimming assumes too)."""
+    plant = at_rest(friction, plant, log.measured[0], log.pwm[0])
+    state = rest_state(friction, plant, log.measured[0], log.pwm[0])
+    out = simulate_axis(friction, plant, log.pwm[1:], log.period, state)
+    return np.r_[log.measured[0], out]
+
+
+def at_rest(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float) -> AxisPlant:
+    """``plant`` with its gravity shifted so that ``pwm`` holds ``angle`` (rad) exactly."""
+    u = np.sign(pwm) * max(abs(pwm) - friction.deadband, 0.0)
+    unbalanced = plant.input_gain * u - np.interp(angle, plant.grid, plant.gravity) - friction.gravity_offset
+    return replace(plant, gravity=plant.gravity + unbalanced)
+
+
+def fit_percent(measured: np.ndarray, predicted: np.ndarray) -> float:
+    """NRMSE fit in percent (MATLAB's ``compare``): 100 (1 - |y - yhat| / |y - mean y|)."""
+    spread = np.linalg.norm(measured - measured.mean())
+    return float(100.0 * (1.0 - np.linalg.norm(measured - predicted) / spread)) if spread > 0 else float("nan")
+
+
+@dataclass(frozen=True)
+class Search:
+    """Which parameters are free, and how they map to the search space."""
+
+    base: AxisFriction
+    free: tuple[str, ...]
+
+    def bounds(self) -> list[tuple[float, float]]:
+        return [tuple(np.log(BOUNDS[n][:2])) if len(BOUNDS[n]) == 3 else BOUNDS[n] for n in self.free]
+
+    def friction(self, x) -> AxisFriction:
+        values = {n: (float(np.exp(v)) if len(BOUNDS[n]) == 3 else float(v)) for n, v in zip(self.free, x)}
+        return replace(self.base, **values)
+
+    def start(self, friction: AxisFriction) -> np.ndarray:
+        lo, hi = np.array(self.bounds()).T
+        x = [np.log(getattr(friction, n)) if len(BOUNDS[n]) == 3 else getattr(friction, n) for n in self.free]
+        return np.clip(np.nan_to_num(np.array(x, dtype=float), neginf=lo.min()), lo, hi)
+
+
+def search_for(terms) -> Search:
+    """The free parameters of a model with ``terms`` on (see :data:`TERMS`)."""
+    unknown = set(terms) - set(TERMS)
+    if unknown:
+        raise RcmKinError(f"unknown model term(s) {', '.join(sorted(unknown))}; the terms are {', '.join(TERMS)}")
+    off = {n for t in TERMS if t not in terms for n in TERM_PARAMETERS[t]}
+    free = tuple(n for n in NAMES if n not in off)
+    return Search(AxisFriction(), free)
+
+
+def residuals(friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLog]) -> np.ndarray:
+    """Per log, (predicted - measured) / spread of the measured angle, stacked."""
+    out = []
+    for plant, log in zip(plants, logs):
+        predicted = predict_log(friction, plant, log)
+        spread = np.linalg.norm(log.measured - log.measured.mean())
+        out.append((predicted - log.measured) / spread)
+    return np.concatenate(out)
+
+
+def fit_friction(search: Search, plants: list[AxisPlant], logs: list[AxisLog], seed: int = 0,
+                 start: AxisFriction | None = None, generations: int = 60,
+                 progress=None) -> tuple[AxisFriction, np.ndarray]:
+    """Shared parameters over ``logs``: evolution then least squares. Returns the estimate and
+    the standard errors of the free parameters (in their own units, NaN where unidentifiable)."""
+    if not logs:
+        raise RcmKinError("identification needs at least one step log")
+    objective = lambda x: float(np.sum(residuals(search.friction(x), plants, logs) ** 2))  # noqa: E731
+    init = "latinhypercube" if start is None else _population(search, start, seed)
+    evolved = differential_evolution(objective, search.bounds(), seed=seed, maxiter=generations, popsize=8,
+                                     tol=1e-6, polish=False, init=init,
+                                     callback=(lambda *a, **k: progress()) if progress else None)
+    lo, hi = np.array(search.bounds()).T
+    polished = least_squares(lambda x: residuals(search.friction(x), plants, logs), evolved.x,
+                             bounds=(lo, hi), diff_step=1e-4, max_nfev=60)
+    best = polished.x if polished.cost * 2 <= evolved.fun else evolved.x
+    return search.friction(best), _standard_errors(search, polished, best)
+
+
+def _population(search: Search, start: AxisFriction, seed: int) -> np.ndarray:
+    """A random population around the whole box with ``start`` as one member."""
+    rng = np.random.default_rng(seed)
+    lo, hi = np.array(search.bounds()).T
+    population = lo + rng.random((8 * len(search.free), lo.size)) * (hi - lo)
+    population[0] = search.start(start)
+    return population
+
+
+def _standard_errors(search: Search, polished, x) -> np.ndarray:
+    """From the Gauss-Newton covariance ``s^2 (J^T J)^-1`` in search coordinates, mapped to the
+    parameters' units (log-scaled ones through ``d p = p d log p``)."""
+    J, r = polished.jac, polished.fun
+    dof = max(r.size - x.size, 1)
+    try:
+        cov = np.linalg.inv(J.T @ J) * (r @ r) / dof
+    except np.linalg.LinAlgError:
+        return np.full(x.size, np.nan)
+    sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    scale = np.array([np.exp(v) if len(BOUNDS[n]) == 3 else 1.0 for n, v in zip(search.free, x)])
+    return sigma * scale
+
+
+@dataclass(frozen=True)
+class LogCheck:
+    """How a model predicts one log (angles in degrees, times in s)."""
+
+    name: str
+    fit_percent: float         # NRMSE fit of the measured angle
+    travel_deg: float          # measured final travel from the start
+    final_error_deg: float     # predicted minus measured final angle
+    stick_time: float          # s after the step when the measured angle stops for good
+    predicted_stick_time: float
+
+    @property
+    def travel_error(self) -> float:
+        """Final-travel error as a fraction of the measured travel."""
+        return abs(self.final_error_deg) / abs(self.travel_deg) if self.travel_deg else float("inf")
+
+
+def stick_time(angle: np.ndarray, period: float, tolerance: float = np.radians(0.02)) -> float:
+    """Time after which ``angle`` (rad) stays within ``tolerance`` of its final value."""
+    moving = np.flatnonzero(np.abs(angle - angle[-1]) > tolerance)
+    return float((moving[-1] + 1) * period) if moving.size else 0.0
+
+
+def check_log(name: str, measured: np.ndarray, predicted: np.ndarray, period: float) -> LogCheck:
+    """Fit, final travel and stick time of ``predicted`` against ``measured`` (rad, same grid)."""
+    travel = np.degrees(measured[-1] - measured[0])
+    return LogCheck(name, fit_percent(measured, predicted), float(travel),
+                    float(np.degrees(predicted[-1] - measured[-1])), stick_time(measured, period),
+                    stick_time(predicted, period))
+
+
+def leave_one_out(search: Search, plants: list[AxisPlant], logs: list[AxisLog], start: AxisFriction,
+                  seed: int = 0, generations: int = 30, progress=None) -> list[LogCheck]:
+    """Each log predicted by the model fitted on all the others (warm-started from ``start``)."""
+    checks = []
+    for k, log in enumerate(logs):
+        rest = [i for i in range(len(logs)) if i != k]
+        friction, _ = fit_friction(search, [plants[i] for i in rest], [logs[i] for i in rest], seed=seed,
+                                   start=start, generations=generations)
+        checks.append(check_log(log.name, log.measured, predict_log(friction, plants[k], log), log.period))
+        if progress:
+            progress()
+    return checks

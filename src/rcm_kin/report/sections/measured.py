@@ -1,0 +1,95 @@
+"""Measured data: calibration on the holding efforts, identification per pose, and the grey-box
+fit of the roll on its step logs."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import ClassVar
+
+from rcm_kin.errors import output_folder
+from rcm_kin.report.render import Table, relative
+from rcm_kin.robot import load_robot
+
+LOG_FOLDERS = (("roll-step", "roll", "step, 2 poles"), ("pitch-prbs", "pitch", "PRBS, 3 poles"))
+
+
+@dataclass(frozen=True)
+class PoseModels:
+    joint: str
+    method: str            # e.g. "step, 2 poles"
+    table: Table
+    csv: str
+
+
+@dataclass(frozen=True)
+class GreyBox:
+    table: Table           # parameter, starting set, fitted
+    figure: str
+    parameters: str        # the fitted parameter file
+
+
+@dataclass(frozen=True)
+class MeasuredSection:
+    template: ClassVar[str] = "measured.html.j2"
+    data_name: str         # the data folder's name (no absolute path in the report)
+    calibration: Table
+    holding_points: int
+    residual_rms: tuple[float, float]   # PWM, roll and pitch
+    pose_models: tuple[PoseModels, ...]
+    greybox: GreyBox | None
+
+
+def _calibration(data: Path, params) -> tuple[Table, int, tuple[float, float]]:
+    from rcm_kin.statics.calibration import calibrate, calibration_logs, holding_points
+
+    points = holding_points(calibration_logs(data))
+    cal = calibrate(load_robot("psm"), params, points)
+    table = Table.of([[n, f"{v:+.4g}", f"{sd:.2g}"] for n, v, sd in zip(cal.names, cal.values, cal.std)],
+                     ["parameter", "value", "std"])
+    return table, len(points), (float(cal.residual_rms[0]), float(cal.residual_rms[1]))
+
+
+def _pose_models(logs: Path, joint: str, method: str, model, folder: Path, out: Path) -> PoseModels:
+    from rcm_kin.identification.pose_models import identify_folder, pose_table_rows, write_pose_table
+
+    models = identify_folder(logs, joint, model)
+    path = write_pose_table(models, folder / f"{joint}_pose_models.csv")
+    rows = [[r["file"], f"{r['fit_percent']:.1f}", f"{r['dc_gain']:+.4f}", r["poles"],
+             f"{r.get('physics_dc_gain', float('nan')):+.4f}", r.get("physics_poles", "")]
+            for r in pose_table_rows(models)]
+    return PoseModels(joint, method, Table.of(rows, ["log", "fit %", "DC (deg/PWM)", "poles (1/s)", "physics DC",
+                                                     "physics poles"]), relative(path, out))
+
+
+def _greybox(logs: Path, params, folder: Path, out: Path) -> GreyBox:
+    from rcm_kin.identification.greybox import fit_greybox, step_logs, write_greybox_parameters
+    from rcm_kin.report.figures import greybox_figure
+
+    fit = fit_greybox(params, "roll", step_logs(sorted(logs.glob("*.csv")), "roll"))
+    toml = write_greybox_parameters(fit, folder / "roll_greybox.toml")
+    figure = greybox_figure(fit, folder / "roll_greybox.png")
+    table = Table.of([[n, f"{b:.4g}", f"{a:.4g}"] for n, b, a in zip(fit.names, fit.before, fit.after)],
+                     ["parameter", "starting set", "fitted"])
+    return GreyBox(table, relative(figure, out), relative(toml, out))
+
+
+def measured_section(out: Path, data: Path, greybox: bool = True) -> MeasuredSection:
+    """Calibrate, identify the first ``roll-step`` and ``pitch-prbs`` folders below ``data`` and,
+    with ``greybox``, fit the roll's grey-box parameters; files into ``out/identification``."""
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.dynamics.state_space import driven_dynamics
+
+    params = load_drive_parameters()
+    calibration, points, rms = _calibration(data, params)
+    model = driven_dynamics(load_robot("psm"), params, coulomb=False)
+    folder = output_folder(out / "identification")
+    pose_models, fit = [], None
+    for sub, joint, method in LOG_FOLDERS:
+        found = sorted(data.glob(f"**/{sub}"))
+        if not found:
+            continue
+        pose_models.append(_pose_models(found[0], joint, method, model, folder, out))
+        if joint == "roll" and greybox:
+            fit = _greybox(found[0], params, folder, out)
+    return MeasuredSection(data.name, calibration, points, rms, tuple(pose_models), fit)

@@ -1,0 +1,74 @@
+"""The stick-slip axis model against closed-form cases, and identification on synthetic logs."""
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np
+import pytest
+
+from rcm_kin.dynamics.stick_slip import SUBSTEP, AxisFriction, AxisPlant, rest_state, simulate_axis
+
+MASS = 0.5        # kg m^2
+COULOMB = 0.8     # N m
+GAIN = 0.1        # N m per PWM count
+
+
+def flat_plant(inertia=MASS, gain=GAIN) -> AxisPlant:
+    """No gravity, constant inertia, no back-EMF, no rotor: a block on a rough floor."""
+    grid = np.linspace(-10.0, 10.0, 5)
+    return AxisPlant(gain, 0.0, 0.0, grid, np.zeros(5), np.full(5, inertia))
+
+
+def test_sliding_block_stops_where_and_when_coulomb_says():
+    """From v0 under Coulomb friction alone: stops at t = J v0 / F_c, x = J v0^2 / (2 F_c), then
+    stays. Time stepping finds the stop within one step h: |dt| <= h, |dx| <= v0 h."""
+    v0 = 2.0
+    friction = AxisFriction(coulomb=COULOMB)
+    state = np.array([0.0, v0, 0.0, v0, 0.0])
+    period = 1e-3
+    angle = simulate_axis(friction, flat_plant(), np.zeros(3000), period, state)
+    t_stop, x_stop = MASS * v0 / COULOMB, MASS * v0**2 / (2 * COULOMB)
+    moving = np.flatnonzero(np.diff(angle) != 0.0)
+    t_sim = (moving[-1] + 2) * period
+    assert abs(t_sim - t_stop) <= period + SUBSTEP
+    assert abs(angle[-1] - x_stop) <= v0 * SUBSTEP
+    assert state[3] == 0.0 and np.all(angle[int(1.1 * t_stop / period):] == angle[-1])
+
+
+def test_block_sticks_below_breakaway_and_accelerates_above_it():
+    """At rest with static friction F_s: a push below F_s leaves it exactly still; above, it
+    accelerates at (F - F_c) / J: x(t) = (F - F_c) t^2 / (2 J) (to O(h))."""
+    friction = AxisFriction(coulomb=COULOMB, static=1.2, stribeck_velocity=1e-6)
+    below = simulate_axis(friction, flat_plant(), np.full(500, 1.19 / GAIN), 1e-3, np.zeros(5))
+    assert np.all(below == 0.0)
+    push = 1.5
+    above = simulate_axis(friction, flat_plant(), np.full(500, push / GAIN), 1e-3, np.zeros(5))
+    t = np.arange(1, 501) * 1e-3
+    exact = (push - COULOMB) * t**2 / (2 * MASS)
+    assert np.max(np.abs(above - exact)) <= (push - COULOMB) / MASS * t[-1] * SUBSTEP * 1.01
+
+
+def test_presliding_spring_is_anchored_where_the_axis_came_to_rest():
+    """A push below the spring's slip force F_p (and no floor friction) settles at F / k_p from
+    the start, wherever that start is; above F_p the spring slips and the travel is larger."""
+    k, slip = 40.0, 1.0
+    friction = AxisFriction(viscous=5.0, presliding_stiffness=k, presliding_force=slip)
+    for start in (-0.2, 0.3):
+        state = rest_state(friction, flat_plant(), start, 0.0)
+        angle = simulate_axis(friction, flat_plant(), np.full(4000, 0.5 / GAIN), 1e-3, state)
+        assert abs(angle[-1] - start - 0.5 / k) < 1e-9
+    state = rest_state(friction, flat_plant(), 0.0, 0.0)
+    angle = simulate_axis(friction, flat_plant(), np.full(4000, 1.5 / GAIN), 1e-3, state)
+    assert angle[-1] > 2 * slip / k
+
+
+def test_two_mass_drive_carries_the_static_load_through_the_cable():
+    """With the link stuck (large static friction), the motor (encoder side) winds the cable to
+    k_u u / k_c exactly, and the link does not move."""
+    friction = AxisFriction(coulomb=5.0, static=5.0, cable_stiffness=200.0, cable_damping=1.0)
+    plant = AxisPlant(GAIN, 0.5, 3e-3, np.linspace(-1, 1, 5), np.zeros(5), np.full(5, MASS))
+    state = rest_state(friction, plant, 0.0, 0.0)
+    angle = simulate_axis(friction, plant, np.full(3000, 20.0), 1e-3, state)
+    assert abs(angle[-1] - GAIN * 20.0 / 200.0) < 1e-9
+    assert state[2] == 0.0 and state[3] == 0.0
