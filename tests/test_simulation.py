@@ -67,8 +67,8 @@ def test_rk4_period_map_matches_the_closed_form_second_order_response():
 def test_period_map_on_the_psm_matches_an_adaptive_solver(model):
     """RK4 with 4 substeps at 400 Hz against scipy's DOP853 at rtol 1e-11 over 0.25 s, PWM
     switching every period (the nonlinear model with Coulomb friction). The error per period is
-    largest where a velocity crosses the steep tanh of the smoothed Coulomb friction (roll: slope
-    F_c / v_c = 340 N m s/rad on 0.54 kg m^2, |lambda h| = 0.4 at h = 0.625 ms)."""
+    largest where a velocity crosses the steep tanh of the smoothed Coulomb friction (pitch: slope
+    F_c / v_c = 54 N m s/rad on 0.31 kg m^2, |lambda h| = 0.11 at h = 0.625 ms)."""
     F = as_step(period_map(model.forward, T))
     rng = np.random.default_rng(3)
     x = np.array([0.2, -0.3, 0.07, 0.5, -0.4, 0.01])

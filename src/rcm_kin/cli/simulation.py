@@ -9,6 +9,7 @@ import numpy as np
 from rcm_kin.cli.common import RAW, add_json, add_params, emit, floats, psm_robot, require_psm
 from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS, PWM_LIMIT
+from rcm_kin.simulation.controllers import CONTROLLERS
 
 RATE = 1.0 / FIRMWARE_PERIOD        # Hz
 EPILOG_SIMULATE = ("examples: rcm-kin simulate psm --experiment sine --controller scheduled --json\n"
@@ -23,10 +24,10 @@ def add_simulate(sub) -> None:
     p.add_argument("--experiment", required=True, choices=("sine", "step", "target"),
                    help="sine: roll 20 deg / pitch 15 deg, 3 s period; step: 10 deg at 0.5 s; "
                         "target: MTM trajectory through teleoperation and IK")
-    p.add_argument("--controller", required=True, choices=("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity"),
+    p.add_argument("--controller", required=True, choices=CONTROLLERS,
                    help=f"p: Kp {P_GAINS[0]:g}/{P_GAINS[1]:g} PWM/deg; pid: thesis Table 3.4; lqr-fixed: model "
                         "LQR/LQI at (0,0); scheduled: gain-scheduled LQR/LQI + feedforward; scheduled-gravity: plus "
-                        "holding PWM")
+                        "holding PWM; thesis: the thesis's flashed gain tables and law (Tables 4.4-4.8)")
     p.add_argument("--duration", type=float, help="simulated seconds (default: sine 6, step 3, target: recording)")
     p.add_argument("--trajectory", help="MTM recording CSV (unix_time,x,y,z in m) for --experiment target "
                                         "(default: the bundled figure-eight)")

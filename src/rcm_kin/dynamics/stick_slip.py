@@ -2,14 +2,16 @@
 
 Per driven joint (joint-referred SI: rad, N m, kg m^2), with the encoder on the motor:
 
-    motor:  J_m  w' = k_u u_d - (k_e + b_m) w - f_m - tau_c              (drive side)
+    motor:  J_m  w' = k_u u - (k_e + b_m) w - f_m - tau_c                (drive side)
     cable:  tau_c = k_c (theta - q) + d_c (w - v)                         (capstan compliance)
-    link:   (M_ii(q) + J_x) v' = tau_c - g_i(q) - g_0 - b v - f_l - tau_p (link side)
+    link:   (M_ii(q) + J_x) v' = tau_c - g_i(q) - b v - f_l - tau_p      (link side)
     presliding spring: tau_p = k_p(q) (q - z), |tau_p| <= F_p, z moves when the bound is hit
     measured angle: theta (motor angle / gear ratio)
 
-- ``u_d``: the PWM after an optional driver dead-band ``u_d = sign(u) max(|u| - d, 0)``;
-  ``k_u``, ``k_e`` (back-EMF damping) and ``J_m`` (reflected rotor inertia) are the drive's.
+- ``k_u``, ``k_e`` (back-EMF damping) and ``J_m`` (reflected rotor inertia) are the drive's. A
+  driver dead-band is not in the family: the steps and PRBS logs never cross zero PWM (they
+  hold at -5 to -110 counts), and in the one log that starts at zero (the pitch ramp) a
+  dead-band cannot be told from the static friction and gravity the ramp must overcome.
 - ``f_l``, ``f_m``: set-valued friction. At rest a side stays at rest while the force on it is
   within the static friction ``F_s``; sliding, ``f = sign(v) (F_c + (F_s - F_c) exp(-(v/v_s)^2))``
   (Stribeck) plus viscous ``b v``. The motor side has Coulomb friction only.
@@ -17,7 +19,7 @@ Per driven joint (joint-referred SI: rad, N m, kg m^2), with the encoder on the 
   anchored where the axis last came to rest, slipping at ``F_p``. This is what the roll steps
   show: each one behaves like a spring anchored at the angle where it started.
 - ``g_i``, ``M_ii``: gravity and inertia of the closed chain along this axis (the rigid-body
-  model, tabulated over the axis angle), ``g_0`` a constant offset.
+  model, tabulated over the axis angle).
 
 Every term can be switched off (:data:`TERMS`); with the cable rigid (``cable_stiffness`` 0,
 the default) motor and link are one body and their frictions add.
@@ -42,7 +44,7 @@ import numpy as np
 if TYPE_CHECKING:
     from rcm_kin.dynamics.state_space import DrivenDynamics
 
-TERMS = ("stiction", "presliding", "two_mass", "deadband", "gravity_offset")
+TERMS = ("stiction", "presliding", "two_mass")
 SUBSTEP = 2.5e-4   # s: integration step (the fastest mode, the motor on the cable, stays well resolved)
 
 
@@ -62,8 +64,6 @@ class AxisFriction:
     cable_damping: float = 0.0         # N m s/rad
     motor_coulomb: float = 0.0         # N m (joint-referred)
     motor_viscous: float = 0.0         # N m s/rad (joint-referred), beyond back-EMF
-    deadband: float = 0.0              # PWM counts
-    gravity_offset: float = 0.0        # N m
 
     def vector(self) -> np.ndarray:
         return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
@@ -81,8 +81,6 @@ TERM_PARAMETERS = {   # what switching a term off zeroes
     "stiction": ("static", "stribeck_velocity"),
     "presliding": ("presliding_stiffness", "presliding_slope", "presliding_force"),
     "two_mass": ("cable_stiffness", "cable_damping", "motor_coulomb", "motor_viscous"),
-    "deadband": ("deadband",),
-    "gravity_offset": ("gravity_offset",),
 }
 
 
@@ -123,9 +121,9 @@ def _implicit_friction(v, J, h, F, B, static, coulomb, stribeck):
 @numba.njit(cache=True)
 def _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h):
     """Advance ``state = [theta, w, q, v, z]`` by ``h`` with ``pwm`` held (in place)."""
-    Jx, b, Fc, Fs, vs, kp0, sp, Fp, kc, dc, Fcm, bm, dead, g0 = th[0], th[1], th[2], th[3], th[4], \
-        th[5], th[6], th[7], th[8], th[9], th[10], th[11], th[12], th[13]
-    u = np.sign(pwm) * max(abs(pwm) - dead, 0.0)
+    Jx, b, Fc, Fs, vs, kp0, sp, Fp, kc, dc, Fcm, bm = th[0], th[1], th[2], th[3], th[4], th[5], th[6], \
+        th[7], th[8], th[9], th[10], th[11]
+    u = pwm
     q = state[2]
     kp = kp0 * np.exp(sp * q) if kp0 > 0.0 else 0.0
     spring = kp * (q - state[4])
@@ -133,10 +131,10 @@ def _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h):
         F = ku * u - kc * (state[0] - q) + dc * state[3]
         state[1] = _implicit_friction(state[1], Jm, h, F, kemf + bm + dc + h * kc, Fcm, Fcm, 1.0)
         state[0] += h * state[1]
-        F = kc * (state[0] - q) + dc * state[1] - gravity - g0 - spring
+        F = kc * (state[0] - q) + dc * state[1] - gravity - spring
         state[3] = _implicit_friction(state[3], inertia + Jx, h, F, b + dc + h * (kc + kp), Fs, Fc, vs)
     else:          # rigid drive: one body, frictions added
-        F = ku * u - gravity - g0 - spring
+        F = ku * u - gravity - spring
         state[3] = _implicit_friction(state[3], inertia + Jx + Jm, h, F, b + bm + kemf + h * kp,
                                       Fs + Fcm, Fc + Fcm, vs)
         state[1] = state[3]
@@ -151,11 +149,21 @@ def _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h):
 
 
 @numba.njit(cache=True)
-def _run(th, ku, kemf, Jm, grid, gtab, Mtab, pwm, state, period, substeps):
-    """Measured angle (rad) after each held PWM sample of ``pwm``, from ``state`` (in place)."""
+def _run(th, ku, kemf, Jm, grid, gtab, Mtab, pwm, state, period, substeps, rest, angle):
+    """Measured angle (rad) after each held PWM sample of ``pwm``, from ``state`` (in place).
+    Where ``rest[k]``, the axis is known to be at rest at ``angle[k]`` before sample k: its
+    positions are set there and its velocities to 0, the springs keeping their deflection."""
     out = np.empty(pwm.size)
     h = period / substeps
     for k in range(pwm.size):
+        if rest[k]:
+            stretch = state[0] - state[2]
+            deflection = state[2] - state[4]
+            state[0] = angle[k]
+            state[2] = angle[k] - stretch
+            state[4] = state[2] - deflection
+            state[1] = 0.0
+            state[3] = 0.0
         for _ in range(substeps):
             _substep(state, th, pwm[k], _lookup(state[2], grid, gtab), _lookup(state[2], grid, Mtab),
                      ku, kemf, Jm, h)
@@ -184,25 +192,29 @@ def rest_state(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: floa
     static equilibrium the axis came to rest in: the cable carries the motor torque, and what the
     rigid-body gravity leaves unbalanced loads the presliding spring (up to its slip force; any
     rest is left to the friction, which holds it within the static friction)."""
-    u = np.sign(pwm) * max(abs(pwm) - friction.deadband, 0.0)
-    torque = plant.input_gain * u
+    torque = plant.input_gain * pwm
     stretch = torque / friction.cable_stiffness if friction.cable_stiffness > 0 else 0.0
     q = angle - stretch
     anchor = q
     if friction.presliding_stiffness > 0:
         k = friction.presliding_stiffness * np.exp(friction.presliding_slope * q)
-        load = torque - np.interp(q, plant.grid, plant.gravity) - friction.gravity_offset
+        load = torque - np.interp(q, plant.grid, plant.gravity)
         anchor = q - np.clip(load, -friction.presliding_force, friction.presliding_force) / k
     return np.array([angle, 0.0, q, 0.0, anchor])
 
 
 def simulate_axis(friction: AxisFriction, plant: AxisPlant, pwm: np.ndarray, period: float,
-                  state: np.ndarray) -> np.ndarray:
+                  state: np.ndarray, rests: np.ndarray | None = None) -> np.ndarray:
     """Measured angle (rad) after each of ``pwm``'s samples, each held for ``period`` s, from
-    ``state`` (see :func:`rest_state`; advanced in place)."""
+    ``state`` (see :func:`rest_state`; advanced in place). ``rests`` (optional, same length as
+    ``pwm``): the measured angle (rad) where the axis is known to be at rest before a sample, NaN
+    elsewhere; there the state is set to rest at that angle, the springs keeping their load (a
+    closed-loop record is predicted open loop from each rest to the next)."""
     substeps = max(1, int(np.ceil(period / SUBSTEP - 1e-9)))
+    pwm = np.asarray(pwm, dtype=float)
+    rests = np.full(pwm.size, np.nan) if rests is None else np.asarray(rests, dtype=float)
     return _run(friction.vector(), plant.input_gain, plant.back_emf, plant.rotor_inertia, plant.grid,
-                plant.gravity, plant.inertia, np.asarray(pwm, dtype=float), state, period, substeps)
+                plant.gravity, plant.inertia, pwm, state, period, substeps, ~np.isnan(rests), np.nan_to_num(rests))
 
 
 def axis_plant(model: "DrivenDynamics", joint: str, pose, span: float = np.radians(45.0),

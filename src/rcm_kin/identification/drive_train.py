@@ -36,9 +36,9 @@ BOUNDS = {
     "stribeck_velocity": (1e-3, 1.0, "log"), "presliding_stiffness": (1.0, 1e3, "log"),
     "presliding_slope": (-8.0, 8.0), "presliding_force": (0.05, 5.0, "log"),
     "cable_stiffness": (5.0, 1e4, "log"), "cable_damping": (0.0, 30.0), "motor_coulomb": (0.0, 1.0),
-    "motor_viscous": (0.0, 10.0), "deadband": (0.0, 8.0), "gravity_offset": (-1.0, 1.0),
+    "motor_viscous": (0.0, 10.0),
 }
-DEFAULT_TERMS = ("stiction", "presliding", "deadband")
+DEFAULT_TERMS = ("presliding", "two_mass")
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,7 @@ class AxisLog:
     pwm: np.ndarray          # (n,) counts, held over each period
     measured: np.ndarray     # (n,) rad, the logged angle
     pose: np.ndarray         # (3,) driven joints (rad, rad, m) where the step started
+    rests: np.ndarray | None = None   # (n,) rad where the log is known at rest, NaN elsewhere (closed loop)
 
     @property
     def time(self) -> np.ndarray:
@@ -80,6 +81,42 @@ def axis_log(path: str | Path, joint: str, after: float = AFTER_STEP, rest_pitch
     i = ("roll", "pitch").index(joint)
     pose[i] = np.radians(y[start])
     return AxisLog(Path(path).name, joint, period, u[start:stop], np.radians(y[start:stop]), pose)
+
+
+def closed_loop_log(path: str | Path, joint: str, start: float = 0.0, duration: float | None = None,
+                    min_rest: float = 0.05) -> AxisLog:
+    """``duration`` s of a closed-loop log of ``joint`` from its first rest after ``start`` s, with
+    its rests marked (the angle unchanged for at least ``min_rest`` s): the model is driven by
+    the recorded PWM open loop from each rest to the next (a prediction-error form, so an axis
+    that is unstable without its controller can be identified from closed-loop data)."""
+    record = whole_log(path, joint)
+    still = np.r_[False, np.diff(record.measured) == 0.0]
+    run = np.zeros(still.size, dtype=int)
+    for k in range(1, still.size):
+        run[k] = run[k - 1] + 1 if still[k] else 0
+    resting = run >= int(round(min_rest / record.period))
+    first = np.flatnonzero(resting & (record.time >= start))
+    if first.size == 0:
+        raise RcmKinError(f"{record.name}: the {joint} never rests for {min_rest} s after {start} s")
+    k0 = int(first[0])
+    k1 = record.pwm.size if duration is None else min(record.pwm.size, k0 + int(round(duration / record.period)))
+    pose = record.pose.copy()
+    pose[("roll", "pitch").index(joint)] = record.measured[k0]
+    rests = np.where(resting, record.measured, np.nan)[k0:k1]
+    return AxisLog(f"{record.name}@{record.time[k0]:.1f}s", joint, record.period, record.pwm[k0:k1],
+                   record.measured[k0:k1], pose, rests)
+
+
+def whole_log(path: str | Path, joint: str) -> AxisLog:
+    """All of ``joint``'s record in the log at ``path``, from its first sample (taken at rest)."""
+    log = load_telemetry(path)
+    u, y, period = resample(log, joint, PERIOD)
+    pose = np.array([0.0, 0.0, HOME_INSERTION])
+    for k, other in enumerate(("roll", "pitch")):
+        if other in log.position and other != joint:
+            pose[k] = np.radians(np.mean(log.position[other]))
+    pose[("roll", "pitch").index(joint)] = np.radians(y[0])
+    return AxisLog(Path(path).name, joint, period, u, np.radians(y), pose)
 
 
 def rest_windows(path: str | Path, joint: str, horizon: float = 0.6, min_rest: float = 0.05,
@@ -119,14 +156,14 @@ def predict_log(friction: AxisFriction, plant: AxisPlant, log: AxisLog) -> np.nd
     presliding spring or the friction before the step (what the thesis's trimming assumes too)."""
     plant = at_rest(friction, plant, log.measured[0], log.pwm[0])
     state = rest_state(friction, plant, log.measured[0], log.pwm[0])
-    out = simulate_axis(friction, plant, log.pwm[1:], log.period, state)
+    out = simulate_axis(friction, plant, log.pwm[1:], log.period, state,
+                        None if log.rests is None else log.rests[1:])
     return np.r_[log.measured[0], out]
 
 
 def at_rest(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float) -> AxisPlant:
     """``plant`` with its gravity shifted so that ``pwm`` holds ``angle`` (rad) exactly."""
-    u = np.sign(pwm) * max(abs(pwm) - friction.deadband, 0.0)
-    unbalanced = plant.input_gain * u - np.interp(angle, plant.grid, plant.gravity) - friction.gravity_offset
+    unbalanced = plant.input_gain * pwm - np.interp(angle, plant.grid, plant.gravity)
     return replace(plant, gravity=plant.gravity + unbalanced)
 
 
@@ -166,33 +203,37 @@ def search_for(terms) -> Search:
     return Search(AxisFriction(), free)
 
 
-def residuals(friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLog]) -> np.ndarray:
-    """Per log, (predicted - measured) / spread of the measured angle, stacked."""
+def residuals(friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLog],
+              floor: float = 0.0) -> np.ndarray:
+    """Per log, (predicted - measured) / spread of the measured angle, stacked. ``floor`` (rad,
+    RMS): the least spread a log is scaled by, so that windows that barely move (closed-loop
+    logs) do not outweigh the rest."""
     out = []
     for plant, log in zip(plants, logs):
         predicted = predict_log(friction, plant, log)
-        spread = np.linalg.norm(log.measured - log.measured.mean())
+        spread = max(np.linalg.norm(log.measured - log.measured.mean()), floor * np.sqrt(log.measured.size))
         out.append((predicted - log.measured) / spread)
     return np.concatenate(out)
 
 
 def fit_friction(search: Search, plants: list[AxisPlant], logs: list[AxisLog], seed: int = 0,
-                 start: AxisFriction | None = None, generations: int = 60,
+                 start: AxisFriction | None = None, generations: int = 100, floor: float = 0.0,
                  progress=None) -> tuple[AxisFriction, np.ndarray]:
-    """Shared parameters over ``logs``: evolution then least squares. Returns the estimate and
-    the standard errors of the free parameters (in their own units, NaN where unidentifiable)."""
+    """Shared parameters over ``logs``: evolution then least squares (``floor``: see
+    :func:`residuals`). Returns the estimate and the standard errors of the free parameters (in
+    their own units, NaN where unidentifiable)."""
     if not logs:
         raise RcmKinError("identification needs at least one step log")
-    objective = lambda x: float(np.sum(residuals(search.friction(x), plants, logs) ** 2))  # noqa: E731
+    objective = lambda x: float(np.sum(residuals(search.friction(x), plants, logs, floor) ** 2))  # noqa: E731
     init = "latinhypercube" if start is None else _population(search, start, seed)
     evolved = differential_evolution(objective, search.bounds(), seed=seed, maxiter=generations, popsize=8,
                                      tol=1e-6, polish=False, init=init,
                                      callback=(lambda *a, **k: progress()) if progress else None)
     lo, hi = np.array(search.bounds()).T
-    polished = least_squares(lambda x: residuals(search.friction(x), plants, logs), evolved.x,
-                             bounds=(lo, hi), diff_step=1e-4, max_nfev=60)
+    residual = lambda x: residuals(search.friction(x), plants, logs, floor)  # noqa: E731
+    polished = least_squares(residual, evolved.x, bounds=(lo, hi), diff_step=1e-4, max_nfev=60)
     best = polished.x if polished.cost * 2 <= evolved.fun else evolved.x
-    return search.friction(best), _standard_errors(search, polished, best)
+    return search.friction(best), _standard_errors(search, residual, best)
 
 
 def _population(search: Search, start: AxisFriction, seed: int) -> np.ndarray:
@@ -204,16 +245,24 @@ def _population(search: Search, start: AxisFriction, seed: int) -> np.ndarray:
     return population
 
 
-def _standard_errors(search: Search, polished, x) -> np.ndarray:
-    """From the Gauss-Newton covariance ``s^2 (J^T J)^-1`` in search coordinates, mapped to the
-    parameters' units (log-scaled ones through ``d p = p d log p``)."""
-    J, r = polished.jac, polished.fun
+def _standard_errors(search: Search, residual, x, step: float = 1e-2) -> np.ndarray:
+    """Gauss-Newton standard errors ``sqrt(diag(s^2 (J^T J)^-1))`` with ``J`` by central
+    differences of ``step`` in the search coordinates (1 % for the log-scaled parameters): wide
+    enough to see through the friction's small discontinuities. Mapped to the parameters' units
+    (log-scaled ones through ``d p = p d log p``); NaN for a parameter the logs do not determine."""
+    r = residual(x)
+    J = np.empty((r.size, x.size))
+    for k in range(x.size):
+        e = np.zeros(x.size)
+        e[k] = step
+        J[:, k] = (residual(x + e) - residual(x - e)) / (2 * step)
     dof = max(r.size - x.size, 1)
-    try:
-        cov = np.linalg.inv(J.T @ J) * (r @ r) / dof
-    except np.linalg.LinAlgError:
-        return np.full(x.size, np.nan)
-    sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    information = J.T @ J
+    sigma = np.full(x.size, np.nan)
+    seen = np.diag(information) > 0
+    if seen.any():
+        cov = np.linalg.pinv(information[np.ix_(seen, seen)]) * (r @ r) / dof
+        sigma[seen] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     scale = np.array([np.exp(v) if len(BOUNDS[n]) == 3 else 1.0 for n, v in zip(search.free, x)])
     return sigma * scale
 
@@ -226,7 +275,7 @@ class LogCheck:
     fit_percent: float         # NRMSE fit of the measured angle
     travel_deg: float          # measured final travel from the start
     final_error_deg: float     # predicted minus measured final angle
-    stick_time: float          # s after the step when the measured angle stops for good
+    stick_time: float          # s after the start when the measured angle stops for good
     predicted_stick_time: float
 
     @property
@@ -250,14 +299,26 @@ def check_log(name: str, measured: np.ndarray, predicted: np.ndarray, period: fl
 
 
 def leave_one_out(search: Search, plants: list[AxisPlant], logs: list[AxisLog], start: AxisFriction,
-                  seed: int = 0, generations: int = 30, progress=None) -> list[LogCheck]:
-    """Each log predicted by the model fitted on all the others (warm-started from ``start``)."""
-    checks = []
+                  seed: int = 0, generations: int = 40, floor: float = 0.0,
+                  progress=None) -> tuple[list[LogCheck], list[AxisFriction]]:
+    """Each log predicted by the model fitted on all the others (warm-started from ``start``);
+    the checks, and the parameters of each fold."""
+    checks, folds = [], []
     for k, log in enumerate(logs):
         rest = [i for i in range(len(logs)) if i != k]
         friction, _ = fit_friction(search, [plants[i] for i in rest], [logs[i] for i in rest], seed=seed,
-                                   start=start, generations=generations)
+                                   start=start, generations=generations, floor=floor)
         checks.append(check_log(log.name, log.measured, predict_log(friction, plants[k], log), log.period))
+        folds.append(friction)
         if progress:
             progress()
-    return checks
+    return checks, folds
+
+
+def jackknife_errors(folds: list[AxisFriction], names) -> dict[str, float]:
+    """Leave-one-out (jackknife) standard errors of the parameters ``names`` over the folds:
+    ``sqrt((n - 1) / n sum (p_i - mean p)^2)``, the spread the choice of logs causes."""
+    n = len(folds)
+    values = np.array([[getattr(f, name) for name in names] for f in folds])
+    spread = np.sqrt((n - 1) / n * np.sum((values - values.mean(axis=0)) ** 2, axis=0))
+    return dict(zip(names, map(float, spread)))

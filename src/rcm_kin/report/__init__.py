@@ -6,7 +6,8 @@ self-checks, holding-effort maps with the thesis Fig 4.6/4.7 curves, the drive p
 the counterweight designs, the linear models per grid pose, the model-based gain schedule
 beside the thesis's tables, the thesis's tracking experiments (P against the scheduled
 controller) with animations, and the safety filters and certificates. With a data folder:
-calibration, identification per pose and the grey-box fit on the measured logs.
+calibration, identification per pose, the grey-box fit, and the identified drive train against
+every step log (each also left out of the fit) on the measured logs.
 
 Each section computes a plain data object; :mod:`rcm_kin.report.render` renders them. Every
 link in index.html is relative to the report folder, so the folder can be moved or served.
@@ -27,6 +28,7 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
 
     from rcm_kin.report.render import render_index
     from rcm_kin.report.sections.gravity import gravity_section
+    from rcm_kin.report.sections.drive_train import drive_train_section
     from rcm_kin.report.sections.linear_models import linear_models_section
     from rcm_kin.report.sections.measured import measured_section
     from rcm_kin.report.sections.models import models_section
@@ -61,6 +63,8 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
         step("safety")
         if data is not None:
             sections.append(measured_section(out, Path(data)))
+            identified = drive_train_section(out, Path(data))
+            sections += [identified] if identified is not None else []
             step("measured data")
         index = out / "index.html"
         index.write_text(render_index(sections))

@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rcm_kin.control.thesis_reference import FIGURES  # noqa: E402
+from rcm_kin.errors import RcmKinError  # noqa: E402
 
 # line styles that stay apart when curves coincide (e.g. roll -15 and +15 by symmetry)
 STYLES = ({"ls": "-", "marker": "o", "ms": 4}, {"ls": "-", "lw": 2.4, "alpha": 0.7},
@@ -23,9 +24,38 @@ STYLES = ({"ls": "-", "marker": "o", "ms": 4}, {"ls": "-", "lw": 2.4, "alpha": 0
 def _save(fig, path: str | Path) -> Path:
     """Write the figure as a PNG (110 dpi) and free it."""
     path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        fig.savefig(path, dpi=110)
+    except (OSError, ValueError) as exc:
+        raise RcmKinError(f"cannot write the figure {path}: {exc}") from None
+    finally:
+        plt.close(fig)
     return path
+
+
+def _still_spans(time: np.ndarray, angle: np.ndarray, least: float = 0.05) -> list[tuple[float, float]]:
+    """Intervals (s) over which ``angle`` does not change for at least ``least`` s."""
+    moving = np.r_[True, np.diff(angle) != 0.0, True]
+    edges = np.flatnonzero(moving)
+    return [(time[a], time[min(b, time.size - 1)]) for a, b in zip(edges[:-1], edges[1:])
+            if time[min(b, time.size - 1)] - time[a] >= least]
+
+
+def prediction_figure(time, measured, predicted, path: str | Path, title: str = "") -> Path:
+    """Measured and predicted angle (deg) over time (s); bands along the bottom and the top of the
+    axes mark where the measured angle rests and where the model is stuck."""
+    fig, ax = plt.subplots(figsize=(8, 3.6), constrained_layout=True)
+    bands = ((_still_spans(time, measured), "0.8", "measured at rest (lower band)", 0.0, 0.08),
+             (_still_spans(time, predicted), "#9fd49f", "model stuck (upper band)", 0.92, 1.0))
+    for spans, colour, label, low, high in bands:
+        for k, (a, b) in enumerate(spans):
+            ax.axvspan(a, b, ymin=low, ymax=high, color=colour, lw=0, label=label if k == 0 else None)
+    ax.plot(time, measured, "k", lw=1.4, label="measured")
+    ax.plot(time, predicted, color="tab:green", lw=1.2, ls="--", label="predicted (recorded PWM, no refit)")
+    ax.set(xlabel="time (s)", ylabel="angle (deg)", title=title)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
 
 
 def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0) -> Path:

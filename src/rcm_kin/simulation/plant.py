@@ -7,8 +7,9 @@ Smooth model: fixed-step RK4 with the PWM held.
 
 Classical RK4 (:func:`rcm_kin.symbolic.integrators.rk4_map`) with ``substeps`` equal steps per
 period ``T``. The stiffest term of the PSM's driven joints is the smoothed Coulomb friction at
-rest (roll: slope ``F_c / v_c`` of 340 N m s/rad on 0.54 kg m^2, 630 1/s; pitch 170 1/s; the
-insertion loop ~120 rad/s), which gives ``|lambda| h <= 0.4`` at 400 Hz and 4 substeps, inside
+rest (pitch: slope ``F_c / v_c`` of 54 N m s/rad on 0.31 kg m^2, 170 1/s; roll 98 N m s/rad on
+1.12 kg m^2, 88 1/s; the insertion loop ~120 rad/s), which gives ``|lambda| h <= 0.11`` at 400 Hz
+and 4 substeps, inside
 RK4's stability region (2.8). ``tests/test_simulation.py`` compares one period with DOP853 at
 rtol 1e-11: within 1e-7 rad in position and 2e-4 rad/s in velocity, the largest where a
 velocity reverses through the friction.
@@ -22,7 +23,7 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, with_joint
+from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, JointDrive, with_joint
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
 from rcm_kin.dynamics.stick_slip import AxisFriction, advance_axis
 from rcm_kin.errors import RcmKinError
@@ -76,11 +77,17 @@ class DriveTrainPlant:
         return state.ravel()
 
 
+def smooth_friction(drive: JointDrive) -> AxisFriction:
+    """A joint without an identified drive train: its smooth-model constants (extra inertia,
+    viscous, Coulomb friction) with the Coulomb law as a sticking one."""
+    return AxisFriction(extra_inertia=drive.extra_inertia, viscous=drive.viscous, coulomb=drive.coulomb)
+
+
 def drive_train_plant(robot: Robot, params: DriveParameters, period: float) -> DriveTrainPlant:
-    """The PSM plant with ``params``' identified drive trains (joints without one: rigid, no
-    friction beyond the drive's back-EMF)."""
+    """The PSM plant with ``params``' identified drive trains; a joint without one keeps its
+    smooth-model constants (:func:`smooth_friction`)."""
     base = params
     for joint in DRIVEN:
         base = with_joint(base, joint, extra_inertia=0.0, viscous=0.0, coulomb=0.0)
-    friction = np.stack([params.drive_train.get(j, AxisFriction()).vector() for j in DRIVEN])
+    friction = np.stack([params.drive_train.get(j, smooth_friction(params[j])).vector() for j in DRIVEN])
     return DriveTrainPlant(driven_dynamics(robot, base, coulomb=False), friction, period)

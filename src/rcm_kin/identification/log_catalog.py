@@ -1,0 +1,88 @@
+"""Which telemetry log can identify what: open-loop steps, closed-loop records, or neither.
+
+A log identifies a joint's drive train when its angle is in degrees and the pose of the other
+axis is known and inside the model's range (the rigid-body gravity along the joint depends on
+it). Per joint (roll, pitch) a log is
+
+- a **step**: the PWM holds one value for at least ``HOLD`` s, changes once, and holds the new
+  value to the end (the roll steps, the pitch step): simulated from the sample before the step;
+- **closed loop**: any other log with motion (PRBS under a controller): cut into windows from
+  rest (:func:`rcm_kin.identification.drive_train.rest_windows`).
+
+Logs are skipped with the reason: an angle column that is not in degrees (the pitch ramp log
+stores raw encoder counts), the other axis missing from a step log (its gravity would be a
+guess), or outside the joint range (resting on its mechanical stop, a contact the model does
+not have), and closed-loop logs in which the joint only holds still. A log without the roll
+takes it at 0, as the single-axis experiments were run (data README: "at roll about 0"); a log
+without the pitch is skipped for lack of its pose.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rcm_kin.errors import RcmKinError
+from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry
+
+HOLD = 0.5            # s a step's PWM must hold before and after its one change
+ANGLE_RANGE = 90.0    # deg: an angle column beyond this is not in degrees
+LIMIT = 30.0          # deg: the PSM's roll and pitch range (the model's)
+MIN_MOTION = 0.5      # deg: a closed-loop log must move at least this much to identify anything
+
+
+@dataclass(frozen=True)
+class CatalogEntry:
+    path: Path
+    joint: str
+    kind: str             # "step", "closed-loop" or "skipped"
+    reason: str = ""      # why it was skipped
+
+
+def classify(log: TelemetryLog, joint: str) -> tuple[str, str]:
+    """``(kind, reason)`` of ``log`` for ``joint`` (see the module text)."""
+    if joint not in log.position or joint not in log.pwm:
+        return "skipped", f"no {joint} columns"
+    angle, u = log.position[joint], log.pwm[joint]
+    if np.max(np.abs(angle)) > ANGLE_RANGE:
+        return "skipped", f"the {joint} angle is not in degrees (|angle| up to {np.max(np.abs(angle)):.0f})"
+    if np.ptp(angle) == 0.0:
+        return "skipped", f"the {joint} does not move"
+    other = "pitch" if joint == "roll" else "roll"
+    changes = np.flatnonzero(np.abs(np.diff(u)) > 0.1)
+    step = changes.size == 1 and min(log.time[changes[0]], log.time[-1] - log.time[changes[0] + 1]) >= HOLD
+    if other in log.position:
+        held = float(np.mean(log.position[other]))
+        if abs(held) > LIMIT:
+            return "skipped", f"the {other} is at {held:.1f} deg, outside the model's range (on its stop)"
+    elif other == "pitch":
+        return "skipped", f"the pitch angle is not logged: its gravity along the {joint} would be a guess"
+    if not step and np.ptp(angle) < MIN_MOTION:
+        return "skipped", f"the {joint} only holds still ({np.ptp(angle):.2f} deg of motion)"
+    return ("step" if step else "closed-loop"), ""
+
+
+def catalog(paths, joints=("roll", "pitch")) -> list[CatalogEntry]:
+    """Every CSV log in ``paths`` (files or folders, searched recursively) for each joint."""
+    files = []
+    for path in map(Path, paths):
+        if path.is_dir():
+            files += sorted(path.glob("**/*.csv"))
+        elif path.is_file():
+            files.append(path)
+        else:
+            raise RcmKinError(f"no log file or folder at {path}")
+    if not files:
+        raise RcmKinError(f"no CSV logs in {', '.join(map(str, paths))}")
+    out = []
+    for file in files:
+        try:
+            log = load_telemetry(file)
+        except RcmKinError as exc:
+            out += [CatalogEntry(file, joint, "skipped", str(exc)) for joint in joints]
+            continue
+        for joint in joints:
+            out.append(CatalogEntry(file, joint, *classify(log, joint)))
+    return out
