@@ -7,6 +7,10 @@ Target: the mapped CasADi evaluation is faster per pose than the Pinocchio loop.
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS
+
 import time
 
 import numpy as np

@@ -7,6 +7,10 @@ blend under 50 us, CBF-QP (Clarabel) under 1 ms; each SOS program under 10 s.
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS
+
 import time
 
 import numpy as np

@@ -1,5 +1,16 @@
-"""Simulated seconds per wall-clock second of the 400 Hz closed loop (nonlinear PSM plant, RK4
-with 4 substeps per period, encoder/PWM quantisation, firmware velocity estimate).
+"""Simulated seconds per wall-clock second of the 400 Hz closed loop (PSM plant, encoder/PWM
+quantisation, firmware velocity estimate), and the cost of one plant period, same run:
+
+- the shipped plant, :class:`~rcm_kin.simulation.plant.DriveTrainPlant`: the CasADi mass
+  matrix and bias once per period, three stick-slip axes advanced by numba (4 substeps);
+- the smooth model as before the drive trains: ``period_map(driven_dynamics(psm, params).forward,
+  period)`` (CasADi RK4, 4 substeps), also run in the closed loop (the drive trains stripped
+  from the shipped parameters, so ``run_experiment`` builds the smooth plant);
+- the plain Pinocchio call a user would write for one period: 4 substeps of semi-implicit
+  Euler on the reduced model (the closed chain as mimic joints), ``pin.crba`` +
+  ``pin.nonLinearEffects`` and a 3 x 3 solve with the drive's terms (``pin.aba`` does not take
+  mimic joints in Pinocchio 4; the gravity offsets of the drive parameters are left out), and
+  for scale ``pin.aba`` on the open tree (no loop closure: a cost floor, not the same physics).
 
     python benchmarks/bench_simulation.py
 Target: at least 10 simulated seconds per wall-clock second for every controller, so the
@@ -8,36 +19,112 @@ report's experiments and a parameter sweep stay interactive on 2 cores.
 
 from __future__ import annotations
 
-import time
+import os
 
-import numpy as np
-from common import per_call, report
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from rcm_kin.hardware import FIRMWARE_PERIOD, PWM_LIMIT
-from rcm_kin.simulation.controllers import CONTROLLERS, Sample, make_controller
-from rcm_kin.simulation.experiments import psm_plant_and_schedule, run_experiment
+import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
+from common import per_call, report  # noqa: E402
+
+from rcm_kin import load_robot  # noqa: E402
+from rcm_kin.closure.reduced import tree_configuration  # noqa: E402
+from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
+from rcm_kin.dynamics.state_space import drive_constants, driven_dynamics  # noqa: E402
+from rcm_kin.hardware import FIRMWARE_PERIOD, PWM_LIMIT  # noqa: E402
+from rcm_kin.simulation.controllers import CONTROLLERS, Sample, make_controller  # noqa: E402
+from rcm_kin.simulation.experiments import psm_plant_and_schedule, run_experiment  # noqa: E402
+from rcm_kin.simulation.plant import period_map  # noqa: E402
+
+SUBSTEPS = 4
+
+
+def pinocchio_period(robot, params, period: float = FIRMWARE_PERIOD, substeps: int = SUBSTEPS):
+    """``(q, v, u) -> (q, v)`` over one period: semi-implicit Euler on the reduced model,
+    the driven joints moving and the instrument joints held (reduced q = actuated q)."""
+    model, data = robot.reduced, robot.reduced.createData()
+    i = robot.reduced_q_actuated[:3]
+    d = drive_constants(params)
+    h = period / substeps
+
+    def step(q, v, u):
+        q, v = q.copy(), v.copy()
+        for _ in range(substeps):
+            M = pin.crba(model, data, q, pin.Convention.WORLD)[np.ix_(i, i)]
+            M = np.triu(M) + np.triu(M, 1).T + np.diag(d.reflected_inertia)
+            tau = d.input_gain * u - d.damping * v[i] - d.coulomb * np.tanh(v[i] / d.coulomb_velocity)
+            v[i] += h * np.linalg.solve(M, tau - pin.nonLinearEffects(model, data, q, v)[i])
+            q[i] += h * v[i]
+        return q, v
+    return step
+
+
+def aba_period(robot, params, period: float = FIRMWARE_PERIOD, substeps: int = SUBSTEPS):
+    """The same loop with ``pin.aba`` on the open tree (loops not closed): cost only."""
+    model, data = robot.tree, robot.tree.createData()
+    i = robot.tree_q_actuated[:3]
+    d = drive_constants(params)
+    h = period / substeps
+
+    def step(q, v, u):
+        q, v = q.copy(), v.copy()
+        for _ in range(substeps):
+            tau = np.zeros(model.nv)
+            tau[i] = d.input_gain * u - d.damping * v[i] - d.coulomb * np.tanh(v[i] / d.coulomb_velocity)
+            v += h * pin.aba(model, data, q, v, tau)
+            q = pin.integrate(model, q, h * v)
+        return q, v
+    return step
 
 
 def main() -> None:
+    print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+    psm, params = load_robot("psm"), load_drive_parameters()
+    smooth_params = replace(params, drive_train={})                  # the smooth model, as before
     plant, schedule = psm_plant_and_schedule()
-    x, u = plant.initial(np.array([0.1, -0.1, 0.08])), np.array([-20.0, -80.0, 5.0])
+    position, u = np.array([0.1, -0.1, 0.08]), np.array([-20.0, -80.0, 5.0])
+    x = plant.initial(position)
+    smooth = period_map(driven_dynamics(psm, params).forward, FIRMWARE_PERIOD, SUBSTEPS)
+    xs = np.r_[position, np.zeros(3)]
+    plain = pinocchio_period(psm, params)
+    q_red, v_red = psm.to_reduced(np.r_[position, np.zeros(psm.nq - 3)]), np.zeros(psm.reduced.nv)
+    tree_aba = aba_period(psm, params)
+    q_tree = tree_configuration(psm, np.r_[position, np.zeros(psm.nq - 3)])
+    v_tree = np.zeros(psm.tree.nv)
     sample = Sample(np.array([5.0, -5.0, 0.08]), np.array([1.0, 2.0, 0.0]), np.array([6.0, -4.0, 0.08]),
                     np.zeros(3), np.zeros(3), FIRMWARE_PERIOD, PWM_LIMIT)
     scheduled = make_controller("scheduled-gravity", schedule)
     memory = scheduled.initial_memory()
-    report([("plant: one 2.5 ms period (RK4 x4, CasADi)", per_call(lambda: plant.step(x, u), 2000)),
-            ("controller: scheduled-gravity, one tick", per_call(lambda: scheduled.command(memory, sample), 2000))])
+    shipped = per_call(lambda: plant.step(x, u), 2000)
+    rows = [(f"plant: one 2.5 ms period, {type(plant).__name__} (numba stick-slip + CasADi M/bias)", shipped),
+            ("plant: one period, smooth period_map (CasADi RK4 x4)", per_call(lambda: smooth(xs, u), 2000)),
+            ("plant: one period, plain Pinocchio crba + nle + solve, Euler x4 (reduced)",
+             per_call(lambda: plain(q_red, v_red, u), 2000)),
+            ("plant: one period, plain pin.aba, Euler x4 (open tree, cost only)",
+             per_call(lambda: tree_aba(q_tree, v_tree, u), 2000)),
+            ("controller: scheduled-gravity, one tick", per_call(lambda: scheduled.command(memory, sample), 2000))]
+    report(rows)
+    print("ratio to the shipped plant's period: " + ", ".join(
+        f"{label} {seconds / shipped:.2f}" for label, (_, seconds) in zip(("smooth RK4", "Pinocchio", "open-tree ABA"),
+                                                                          rows[1:4])))
     duration = 6.0
+    print(f"\nclosed loop, sine {duration:g} s + 1 s settling: wall s (best of 3), simulated s per wall s "
+          "(target >= 10)")
+    print(f"{'controller':18}  {'drive-train plant':>22}  {'smooth RK4 plant':>22}")
     for name in CONTROLLERS:
-        run_experiment("sine", name, duration=1.0)                  # warm-up
-        best = float("inf")
-        for _ in range(3):
-            start = time.perf_counter()
-            run_experiment("sine", name, duration=duration)
-            best = min(best, time.perf_counter() - start)
-        print(f"sine {duration:g} s with {name:17}: {best:.3f} s wall, "
-              f"{(duration + 1.0) / best:5.1f} simulated s per wall s (incl. 1 s settling; target >= 10)")
-
+        cells = []
+        for p in (None, smooth_params):
+            run_experiment("sine", name, duration=1.0, params=p)              # warm-up (builds the plant)
+            best = float("inf")
+            for _ in range(3):
+                start = time.perf_counter()
+                run_experiment("sine", name, duration=duration, params=p)
+                best = min(best, time.perf_counter() - start)
+            cells.append(f"{best:6.3f} s {(duration + 1.0) / best:6.1f} x")
+        print(f"{name:18}  {cells[0]:>22}  {cells[1]:>22}")
 
 if __name__ == "__main__":
     main()

@@ -135,13 +135,15 @@ C_DRIVER = r"""
 #include "gain_schedule.h"
 int main(void)
 {
-    double r, p, kr[2], kp[3], ff[2], uh[2];
-    while (scanf("%lf %lf", &r, &p) == 2) {
+    double r, p, rdot, kr[2], kp[3], ff[2], uh[2];
+    while (scanf("%lf %lf %lf", &r, &p, &rdot) == 3) {
         rcm_gain_schedule(r, p, kr, kp);
         rcm_pitch_feedforward(r, p, ff);
         rcm_holding_pwm(r, p, uh);
-        printf("%.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n",
-               kr[0], kr[1], kp[0], kp[1], kp[2], ff[0], ff[1], uh[0], uh[1]);
+        printf("%.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n",
+               kr[0], kr[1], kp[0], kp[1], kp[2], ff[0], ff[1], uh[0], uh[1],
+               rcm_friction_feedforward(rdot, 0), rcm_friction_feedforward(rdot, 1),
+               rcm_friction_feedforward(rdot, 2));
     }
     return 0;
 }
@@ -150,21 +152,27 @@ int main(void)
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed")
 def test_header_compiles_and_matches_python(tmp_path, design):
-    schedule = schedule_gains(design, [-30, -10, 0, 20], [-25, 0, 30], insertion=0.05)
-    (tmp_path / "gain_schedule.h").write_text(header_text(schedule, gravity_feedforward=True))
+    schedule = schedule_gains(design, [-30, -10, 0, 20], [-25, 0, 30], insertion=0.05, friction_ramp_deg_s=3.5)
+    (tmp_path / "gain_schedule.h").write_text(header_text(schedule, gravity_feedforward=True,
+                                                          friction_feedforward=True))
     (tmp_path / "main.c").write_text(C_DRIVER)
-    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", "-O2", "-o", "gs", "main.c"],
+    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", "-O2", "-o", "gs", "main.c", "-lm"],
                    cwd=tmp_path, check=True, capture_output=True)
     rng = np.random.default_rng(11)
     points = np.vstack([rng.uniform(-40, 40, (200, 2)), [[-30, -25], [0, 0], [20, 30], [-10, 0], [100, -100]]])
-    stdin = "\n".join(f"{r!r} {p!r}" for r, p in points)
+    # reference velocities (deg/s): at rest, inside the ramp, at it, beyond it, both signs
+    rdots = np.r_[rng.uniform(-60, 60, 200), 0.0, 1e-3, -0.7, 3.5, -45.0]
+    # Python floats: the repr of a NumPy 2 scalar is "np.float64(..)", which scanf cannot read
+    stdin = "\n".join(f"{float(r)!r} {float(p)!r} {float(v)!r}" for (r, p), v in zip(points, rdots))
     out = subprocess.run([str(tmp_path / "gs")], input=stdin, capture_output=True, text=True, check=True).stdout
     c_values = np.array([[float(v) for v in line.split()] for line in out.splitlines()])
-    for (r, p), c in zip(points, c_values):
+    assert c_values.shape == (len(points), 12)
+    for (r, p), v, c in zip(points, rdots, c_values):
         kr, kp = scheduled_gains(schedule, r, p)
         ff = bilinear(schedule.roll_deg, schedule.pitch_deg, schedule.ff_pitch, r, p)
         uh = bilinear(schedule.roll_deg, schedule.pitch_deg, schedule.u_hold, r, p)
-        np.testing.assert_allclose(c, np.r_[kr, kp, ff, uh], rtol=1e-14, atol=1e-12)
+        np.testing.assert_allclose(c[:9], np.r_[kr, kp, ff, uh], rtol=1e-14, atol=1e-12)
+        np.testing.assert_allclose(c[9:], np.r_[schedule.friction.feedforward([v, v]), 0.0], rtol=0, atol=1e-12)
 
 
 def test_cli_dynamics_and_linearize_contracts(capsys, design):

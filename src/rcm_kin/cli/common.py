@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 
@@ -87,3 +88,14 @@ def driven_model(params: str | None, coulomb: bool):
 def emit(args, payload: dict, text: str) -> None:
     """Print ``payload`` as JSON with ``--json``, else ``text``."""
     print(json.dumps(payload) if args.json else text)
+
+
+def new_output(path: str, force: bool) -> Path:
+    """``path`` as a file the command may write: a clear error if it exists and ``force`` is off,
+    or if its folder does not exist."""
+    out = Path(path)
+    if out.exists() and not force:
+        raise RcmKinError(f"{out} exists: choose another --out or add --force")
+    if not out.parent.is_dir():
+        raise RcmKinError(f"no folder {out.parent} for {out.name}")
+    return out

@@ -7,13 +7,15 @@ from dataclasses import asdict
 import numpy as np
 
 from rcm_kin.cli.common import RAW, add_json, add_params, driven_model, emit, floats, psm_robot, require_psm
+from rcm_kin.control.friction_compensation import DEFAULT_RAMP_DEG_S
 from rcm_kin.control.weights import Weights
 from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.hardware import DRIVER_PWM_RANGE, FIRMWARE_PERIOD, HOME_INSERTION
 
 NOT_PSM = "the driven-joint dynamics are the PSM's (roll, pitch, insertion), not '{robot}'"
 EPILOG_SCHEDULE = ("examples: rcm-kin schedule psm --out gains\n"
-                   "          rcm-kin schedule psm --grid=-30,-15,0,15,30:-30,0,30 --gravity-feedforward --out gains")
+                   "          rcm-kin schedule psm --grid=-30,-15,0,15,30:-30,0,30 --gravity-feedforward --out gains\n"
+                   "          rcm-kin schedule psm --gravity-feedforward --friction-feedforward --out gains")
 
 
 def add_dynamics(sub) -> None:
@@ -55,6 +57,11 @@ def add_schedule(sub) -> None:
                    help=f"insertion of the models in m (default {HOME_INSERTION:g})")
     p.add_argument("--gravity-feedforward", action="store_true",
                    help="also export the holding-PWM table (u_hold) and rcm_holding_pwm()")
+    p.add_argument("--friction-feedforward", action="store_true",
+                   help="also export the sliding-friction compensation (RCM_FC_* and rcm_friction_feedforward(): "
+                        "-F_c/|k_u| tanh(rdot / ramp) PWM on the reference velocity; needs <math.h>)")
+    p.add_argument("--friction-ramp", type=float, default=DEFAULT_RAMP_DEG_S,
+                   help=f"ramp velocity of the friction compensation in deg/s (default {DEFAULT_RAMP_DEG_S:g})")
     for name, value in asdict(Weights()).items():
         p.add_argument("--" + name.replace("_", "-"), dest=name, type=float, default=value,
                        help=f"Bryson budget (default {value:g})")
@@ -98,13 +105,16 @@ def cmd_schedule(args) -> None:
 
     if args.check_points < 2:
         raise RcmKinError("--check-points needs at least 2 poses per axis")
+    if not (np.isfinite(args.friction_ramp) and args.friction_ramp > 0):
+        raise RcmKinError(f"--friction-ramp is a velocity > 0 in deg/s, got {args.friction_ramp}")
     require_psm(args, NOT_PSM)
     model = driven_model(args.params, coulomb=False)
     rolls, pitches = parse_grid(args.grid)
     weights = Weights(**{name: getattr(args, name) for name in asdict(Weights())})
-    schedule = schedule_gains(model, rolls, pitches, args.insertion, weights)
+    schedule = schedule_gains(model, rolls, pitches, args.insertion, weights, args.friction_ramp)
     survey = stability_survey(model, schedule, points=args.check_points)
-    files = write_gain_schedule(schedule, output_folder(args.out), survey, args.gravity_feedforward)
+    files = write_gain_schedule(schedule, output_folder(args.out), survey, args.gravity_feedforward,
+                                args.friction_feedforward)
     weakest = survey.weakest()
     payload = {"files": [str(f) for f in files], "stable": survey.stable, **weakest}
     text = "\n".join([f"wrote {f}" for f in files] + [

@@ -27,7 +27,8 @@ def add_simulate(sub) -> None:
     p.add_argument("--controller", required=True, choices=CONTROLLERS,
                    help=f"p: Kp {P_GAINS[0]:g}/{P_GAINS[1]:g} PWM/deg; pid: thesis Table 3.4; lqr-fixed: model "
                         "LQR/LQI at (0,0); scheduled: gain-scheduled LQR/LQI + feedforward; scheduled-gravity: plus "
-                        "holding PWM; thesis: the thesis's flashed gain tables and law (Tables 4.4-4.8)")
+                        "holding PWM; scheduled-friction: plus the sliding-friction compensation on the reference "
+                        "velocity; thesis: the thesis's flashed gain tables and law (Tables 4.4-4.8)")
     p.add_argument("--duration", type=float, help="simulated seconds (default: sine 6, step 3, target: recording)")
     p.add_argument("--trajectory", help="MTM recording CSV (unix_time,x,y,z in m) for --experiment target "
                                         "(default: the bundled figure-eight)")

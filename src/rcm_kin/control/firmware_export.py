@@ -3,6 +3,10 @@
 The header holds the tables at full double precision and ``rcm_gain_schedule``, the firmware's
 bilinear interpolation (``interpolate`` of thesis Listing 4.14 along roll, then along pitch),
 clamped to the grid's edge outside it: never extrapolated. A NaN angle gives NaN gains.
+Optional feedforwards: the holding PWM table (``gravity_feedforward``) and the sliding-friction
+compensation ``rcm_friction_feedforward`` (``friction_feedforward``;
+:mod:`rcm_kin.control.friction_compensation`), which needs ``tanh`` from ``<math.h>`` (link
+with ``-lm`` where the C library splits it out).
 """
 
 from __future__ import annotations
@@ -80,6 +84,18 @@ static inline void rcm_holding_pwm(double roll_deg, double pitch_deg, double u_h
 }
 """
 
+_FRICTION = """
+/* Friction compensation: the PWM (hardware sign) that cancels the sliding Coulomb friction of
+   axis 0 (roll) or 1 (pitch) while the REFERENCE moves at rdot_deg_s (deg/s):
+   u_fc = -RCM_FC_PWM_<axis> * tanh(rdot / RCM_FC_RAMP_DEG_S), negative for a rising reference
+   (a positive PWM lowers the angle); 0 for any other axis. Add it to the feedback. */
+static inline double rcm_friction_feedforward(double rdot_deg_s, int axis)
+{
+    double amplitude = axis == 0 ? RCM_FC_PWM_ROLL : (axis == 1 ? RCM_FC_PWM_PITCH : 0.0);
+    return -amplitude * tanh(rdot_deg_s / RCM_FC_RAMP_DEG_S);
+}
+"""
+
 
 def _c_array(values: np.ndarray) -> str:
     if values.ndim == 1:
@@ -87,8 +103,23 @@ def _c_array(values: np.ndarray) -> str:
     return "{" + ", ".join(_c_array(v) for v in values) + "}"
 
 
-def header_text(schedule: GainSchedule, gravity_feedforward: bool = False) -> str:
-    """The C99 header of a schedule."""
+def _friction(schedule: GainSchedule):
+    if schedule.friction is None:
+        raise RcmKinError("this gain schedule has no friction compensation to export (schedule_gains adds it)")
+    return schedule.friction
+
+
+def _friction_lines(schedule: GainSchedule) -> list[str]:
+    fc = _friction(schedule)
+    return ["", "#include <math.h>", "",
+            "/* friction compensation: sliding-friction PWM amplitude per axis (counts) and its ramp (deg/s) */",
+            f"#define RCM_FC_PWM_ROLL {float(fc.pwm[0])!r}", f"#define RCM_FC_PWM_PITCH {float(fc.pwm[1])!r}",
+            f"#define RCM_FC_RAMP_DEG_S {float(fc.ramp_deg_s)!r}"]      # repr: shortest exact, always a double
+
+
+def header_text(schedule: GainSchedule, gravity_feedforward: bool = False, friction_feedforward: bool = False) -> str:
+    """The C99 header of a schedule; with ``friction_feedforward`` also the friction compensation
+    (``RCM_FC_*`` constants and ``rcm_friction_feedforward``)."""
     w = schedule.weights
     tables = [("RCM_GS_K_ROLL", schedule.k_roll, "roll {Kp PWM/deg, Kd PWM/(deg/s)}"),
               ("RCM_GS_K_PITCH", schedule.k_pitch, "pitch {Kp PWM/deg, Kd PWM/(deg/s), Ki PWM/(deg s)}"),
@@ -109,6 +140,8 @@ def header_text(schedule: GainSchedule, gravity_feedforward: bool = False) -> st
         f"#define RCM_GS_N_ROLL {len(schedule.roll_deg)}",
         f"#define RCM_GS_N_PITCH {len(schedule.pitch_deg)}",
         f"#define RCM_GS_GRAVITY_FEEDFORWARD {int(gravity_feedforward)}",
+        f"#define RCM_GS_FRICTION_FEEDFORWARD {int(friction_feedforward)}",
+        *(_friction_lines(schedule) if friction_feedforward else []),
         "",
         f"static const double RCM_GS_ROLL_DEG[RCM_GS_N_ROLL] = {_c_array(schedule.roll_deg)};",
         f"static const double RCM_GS_PITCH_DEG[RCM_GS_N_PITCH] = {_c_array(schedule.pitch_deg)};",
@@ -117,12 +150,13 @@ def header_text(schedule: GainSchedule, gravity_feedforward: bool = False) -> st
         lines += ["", f"/* {what} */",
                   f"static const double {name}[RCM_GS_N_PITCH][RCM_GS_N_ROLL][{table.shape[-1]}] = {{\n    "
                   + ",\n    ".join(_c_array(row) for row in table) + "};"]
-    text = "\n".join(lines) + "\n" + _FUNCTIONS + (_HOLDING if gravity_feedforward else "")
+    text = ("\n".join(lines) + "\n" + _FUNCTIONS + (_HOLDING if gravity_feedforward else "")
+            + (_FRICTION if friction_feedforward else ""))
     return text + "\n#endif /* RCM_GAIN_SCHEDULE_H */\n"
 
 
 def gains_payload(schedule: GainSchedule, survey: StabilitySurvey | None = None,
-                  gravity_feedforward: bool = False) -> dict:
+                  gravity_feedforward: bool = False, friction_feedforward: bool = False) -> dict:
     """``gains.json`` content (the contract keys first, then extensions)."""
     points = []
     for j, pitch in enumerate(schedule.pitch_deg):
@@ -145,18 +179,28 @@ def gains_payload(schedule: GainSchedule, survey: StabilitySurvey | None = None,
     }
     if gravity_feedforward:
         payload["u_hold"] = schedule.u_hold.tolist()
+    if friction_feedforward:
+        fc = _friction(schedule)
+        payload["friction_feedforward"] = {
+            "pwm": list(fc.pwm), "ramp_deg_s": fc.ramp_deg_s, "axes": ["roll", "pitch"],
+            "units": {"pwm": "PWM", "ramp_deg_s": "deg/s"},
+            "law": "u_fc = -pwm tanh(rdot / ramp_deg_s), rdot the reference velocity (deg/s), PWM with the "
+                   "hardware sign"}
     if survey is not None:
         payload["stability"] = {"points_per_axis": len(survey.roll_deg), "stable": survey.stable, **survey.weakest()}
     return payload
 
 
 def write_gain_schedule(schedule: GainSchedule, folder: Path, survey: StabilitySurvey | None = None,
-                        gravity_feedforward: bool = False) -> list[Path]:
-    """Write ``gains.json``, ``gains.csv`` and ``gain_schedule.h`` into ``folder``."""
+                        gravity_feedforward: bool = False, friction_feedforward: bool = False) -> list[Path]:
+    """Write ``gains.json``, ``gains.csv`` and ``gain_schedule.h`` into ``folder`` (the friction
+    compensation, a constant per axis, goes into the JSON and the header only)."""
     folder = Path(folder)
     files = [folder / "gains.json", folder / "gains.csv", folder / "gain_schedule.h"]
     try:
-        files[0].write_text(json.dumps(gains_payload(schedule, survey, gravity_feedforward), indent=1))
+        text = header_text(schedule, gravity_feedforward, friction_feedforward)
+        files[0].write_text(json.dumps(gains_payload(schedule, survey, gravity_feedforward, friction_feedforward),
+                                       indent=1))
         with files[1].open("w", newline="") as fh:
             writer = csv.writer(fh)
             header = ["roll_deg", "pitch_deg", "kp_roll", "kd_roll", "kp_pitch", "kd_pitch", "ki_pitch",
@@ -167,7 +211,7 @@ def write_gain_schedule(schedule: GainSchedule, folder: Path, survey: StabilityS
                     writer.writerow([roll, pitch, *schedule.k_roll[j, i], *schedule.k_pitch[j, i],
                                      *schedule.ff_pitch[j, i], *schedule.u_hold[j, i],
                                      np.linalg.eigvals(schedule.A_cl[j, i]).real.max()])
-        files[2].write_text(header_text(schedule, gravity_feedforward))
+        files[2].write_text(text)
     except OSError as exc:
         raise RcmKinError(f"cannot write the gain schedule into {folder}: {exc.strerror}") from None
     return files

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import control
 import numpy as np
 
+from rcm_kin.control.friction_compensation import DEFAULT_RAMP_DEG_S, FrictionCompensation, friction_compensation
 from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.weights import Weights
 from rcm_kin.dynamics.state_space import DrivenDynamics
@@ -106,6 +107,7 @@ class GainSchedule:
     B: np.ndarray            # (np, nr, 6, 3)
     A_cl: np.ndarray         # (np, nr, 7, 7)
     weights: Weights = field(default_factory=Weights)
+    friction: FrictionCompensation | None = None   # sliding-friction feedforward of the model's drive
 
 
 def check_grid(values, what: str, lower: float, upper: float) -> np.ndarray:
@@ -139,11 +141,14 @@ def parse_grid(text: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def schedule_gains(model: DrivenDynamics, roll_deg, pitch_deg, insertion: float = HOME_INSERTION,
-                   weights: Weights | None = None) -> GainSchedule:
-    """Design the gain tables on a roll x pitch grid (degrees) at one insertion (m)."""
+                   weights: Weights | None = None, friction_ramp_deg_s: float = DEFAULT_RAMP_DEG_S) -> GainSchedule:
+    """Design the gain tables on a roll x pitch grid (degrees) at one insertion (m). The schedule
+    also carries the friction-compensation feedforward of the model's sliding Coulomb friction
+    (the Coulomb level the design leaves out), ramped over ``friction_ramp_deg_s`` (deg/s)."""
     if model.coulomb:
         raise RcmKinError("design on the model without Coulomb friction: driven_dynamics(..., coulomb=False)")
     weights = weights or Weights()
+    friction = friction_compensation(model.drive, friction_ramp_deg_s)
     roll_deg = check_grid(roll_deg, "roll", model.lower[ROLL], model.upper[ROLL])
     pitch_deg = check_grid(pitch_deg, "pitch", model.lower[PITCH], model.upper[PITCH])
     P, R = np.meshgrid(pitch_deg, roll_deg, indexing="ij")
@@ -157,7 +162,7 @@ def schedule_gains(model: DrivenDynamics, roll_deg, pitch_deg, insertion: float 
     return GainSchedule(roll_deg, pitch_deg, float(insertion),
                         k_roll.reshape(*shape, 2), k_pitch.reshape(*shape, 3), grid.u0[:, :2].reshape(*shape, 2),
                         ff.reshape(*shape, 2), grid.A.reshape(*shape, 6, 6), grid.B.reshape(*shape, 6, 3),
-                        A_cl.reshape(*shape, 7, 7), weights)
+                        A_cl.reshape(*shape, 7, 7), weights, friction)
 
 
 def interpolate(x: float, x0: float, x1: float, y0, y1):

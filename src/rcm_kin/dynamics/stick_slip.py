@@ -66,11 +66,8 @@ class AxisFriction:
     motor_viscous: float = 0.0         # N m s/rad (joint-referred), beyond back-EMF
 
     def vector(self) -> np.ndarray:
+        """The parameters in field order, as the integration kernels take them."""
         return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
-
-    @classmethod
-    def from_vector(cls, values) -> "AxisFriction":
-        return cls(*(float(x) for x in values))
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -123,18 +120,17 @@ def _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h):
     """Advance ``state = [theta, w, q, v, z]`` by ``h`` with ``pwm`` held (in place)."""
     Jx, b, Fc, Fs, vs, kp0, sp, Fp, kc, dc, Fcm, bm = th[0], th[1], th[2], th[3], th[4], th[5], th[6], \
         th[7], th[8], th[9], th[10], th[11]
-    u = pwm
     q = state[2]
     kp = kp0 * np.exp(sp * q) if kp0 > 0.0 else 0.0
     spring = kp * (q - state[4])
     if kc > 0.0:   # two masses: motor, then link, each implicit in its own velocity
-        F = ku * u - kc * (state[0] - q) + dc * state[3]
+        F = ku * pwm - kc * (state[0] - q) + dc * state[3]
         state[1] = _implicit_friction(state[1], Jm, h, F, kemf + bm + dc + h * kc, Fcm, Fcm, 1.0)
         state[0] += h * state[1]
         F = kc * (state[0] - q) + dc * state[1] - gravity - spring
         state[3] = _implicit_friction(state[3], inertia + Jx, h, F, b + dc + h * (kc + kp), Fs, Fc, vs)
     else:          # rigid drive: one body, frictions added
-        F = ku * u - gravity - spring
+        F = ku * pwm - gravity - spring
         state[3] = _implicit_friction(state[3], inertia + Jx + Jm, h, F, b + bm + kemf + h * kp,
                                       Fs + Fcm, Fc + Fcm, vs)
         state[1] = state[3]

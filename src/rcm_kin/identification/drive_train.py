@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import differential_evolution, least_squares
 
-from rcm_kin.dynamics.stick_slip import (NAMES, TERM_PARAMETERS, TERMS, AxisFriction, AxisPlant, axis_plant,
+from rcm_kin.dynamics.stick_slip import (NAMES, TERM_PARAMETERS, TERMS, AxisFriction, AxisPlant,
                                          rest_state, simulate_axis)
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION
@@ -117,35 +117,6 @@ def whole_log(path: str | Path, joint: str) -> AxisLog:
             pose[k] = np.radians(np.mean(log.position[other]))
     pose[("roll", "pitch").index(joint)] = np.radians(y[0])
     return AxisLog(Path(path).name, joint, period, u, np.radians(y), pose)
-
-
-def rest_windows(path: str | Path, joint: str, horizon: float = 0.6, min_rest: float = 0.05,
-                 rest_pitch: float | None = None) -> list[AxisLog]:
-    """Windows of ``horizon`` s of a closed-loop log, each starting where ``joint`` leaves a rest
-    (its angle unchanged for at least ``min_rest`` s): a state the model knows exactly (at rest,
-    the presliding spring anchored there), so the recorded PWM can drive the model open loop over
-    the window however unstable the axis is without its controller (a prediction-error form)."""
-    log = load_telemetry(path)
-    u, y, period = resample(log, joint, PERIOD)
-    still = np.r_[False, np.diff(y) == 0.0]
-    need, n = int(round(min_rest / period)), int(round(horizon / period))
-    run = np.zeros(u.size, dtype=int)
-    for k in range(1, u.size):
-        run[k] = run[k - 1] + 1 if still[k] else 0
-    starts = [k for k in range(u.size - n) if run[k] >= need and not still[k + 1]]
-    pose = np.array([0.0, 0.0, HOME_INSERTION])
-    other = "roll" if joint == "pitch" else "pitch"
-    if other in log.position:
-        pose[("roll", "pitch").index(other)] = np.radians(np.mean(log.position[other]))
-    elif rest_pitch is not None and other == "pitch":
-        pose[1] = np.radians(rest_pitch)
-    windows = []
-    for i, k in enumerate(starts):
-        at = pose.copy()
-        at[("roll", "pitch").index(joint)] = np.radians(y[k])
-        windows.append(AxisLog(f"{Path(path).name}@{k * period:.2f}s", joint, period, u[k:k + n + 1],
-                               np.radians(y[k:k + n + 1]), at))
-    return windows
 
 
 def predict_log(friction: AxisFriction, plant: AxisPlant, log: AxisLog) -> np.ndarray:
@@ -302,16 +273,14 @@ def leave_one_out(search: Search, plants: list[AxisPlant], logs: list[AxisLog], 
                   seed: int = 0, generations: int = 40, floor: float = 0.0,
                   progress=None) -> tuple[list[LogCheck], list[AxisFriction]]:
     """Each log predicted by the model fitted on all the others (warm-started from ``start``);
-    the checks, and the parameters of each fold."""
+    the checks, and the parameters of each fold. ``progress()``: once per generation."""
     checks, folds = [], []
     for k, log in enumerate(logs):
         rest = [i for i in range(len(logs)) if i != k]
         friction, _ = fit_friction(search, [plants[i] for i in rest], [logs[i] for i in rest], seed=seed,
-                                   start=start, generations=generations, floor=floor)
+                                   start=start, generations=generations, floor=floor, progress=progress)
         checks.append(check_log(log.name, log.measured, predict_log(friction, plants[k], log), log.period))
         folds.append(friction)
-        if progress:
-            progress()
     return checks, folds
 
 
@@ -322,3 +291,27 @@ def jackknife_errors(folds: list[AxisFriction], names) -> dict[str, float]:
     values = np.array([[getattr(f, name) for name in names] for f in folds])
     spread = np.sqrt((n - 1) / n * np.sum((values - values.mean(axis=0)) ** 2, axis=0))
     return dict(zip(names, map(float, spread)))
+
+
+def predicted_standard_errors(search: Search, friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLog],
+                              noise: float, step: float = 1e-2) -> dict[str, float]:
+    """Gauss-Newton standard errors of ``search.free`` at ``friction`` if ``logs`` were measured
+    with white noise of ``noise`` rad RMS on every angle sample (assumed, not estimated from
+    residuals): ``sqrt(diag(noise^2 (J^T J)^-1))``, ``J`` the Jacobian of the predicted angles
+    by central differences taken as :func:`_standard_errors` takes it. For an experiment not run
+    yet, ``logs`` carry the model's own prediction (:mod:`rcm_kin.identification.excitation`)."""
+    x = search.start(friction)
+    angles = lambda x: np.concatenate([predict_log(search.friction(x), p, log)  # noqa: E731
+                                       for p, log in zip(plants, logs)])
+    J = np.empty((sum(log.pwm.size for log in logs), x.size))
+    for k in range(x.size):
+        e = np.zeros(x.size)
+        e[k] = step
+        J[:, k] = (angles(x + e) - angles(x - e)) / (2 * step * noise)
+    information = J.T @ J
+    sigma = np.full(x.size, np.nan)
+    seen = np.diag(information) > 0
+    if seen.any():
+        sigma[seen] = np.sqrt(np.clip(np.diag(np.linalg.pinv(information[np.ix_(seen, seen)])), 0.0, None))
+    scale = np.array([np.exp(v) if len(BOUNDS[n]) == 3 else 1.0 for n, v in zip(search.free, x)])
+    return dict(zip(search.free, map(float, sigma * scale)))

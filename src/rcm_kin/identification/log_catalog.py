@@ -6,8 +6,8 @@ it). Per joint (roll, pitch) a log is
 
 - a **step**: the PWM holds one value for at least ``HOLD`` s, changes once, and holds the new
   value to the end (the roll steps, the pitch step): simulated from the sample before the step;
-- **closed loop**: any other log with motion (PRBS under a controller): cut into windows from
-  rest (:func:`rcm_kin.identification.drive_train.rest_windows`).
+- **closed loop**: any other log with motion (PRBS under a controller): predicted open loop
+  from each rest to the next (:func:`rcm_kin.identification.drive_train.closed_loop_log`).
 
 Logs are skipped with the reason: an angle column that is not in degrees (the pitch ramp log
 stores raw encoder counts), the other axis missing from a step log (its gravity would be a

@@ -23,7 +23,7 @@ from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, Gai
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import INSERTION_KP, P_GAINS
 
-CONTROLLERS = ("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity", "thesis")
+CONTROLLERS = ("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity", "scheduled-friction", "thesis")
 
 
 @dataclass(frozen=True)
@@ -121,12 +121,16 @@ class StateFeedbackController:
 
     ``scheduled``: gains interpolated bilinearly at the measured pose, as ``gain_schedule.h``
     does; otherwise the gains (and feedforward) at roll = pitch = 0. ``gravity``: adds the
-    model's holding PWM at the reference pose (the schedule's ``u_hold`` table, interpolated)."""
+    model's holding PWM at the reference pose (the schedule's ``u_hold`` table, interpolated).
+    ``friction``: adds the sliding-friction feedforward of the schedule
+    (:class:`~rcm_kin.control.friction_compensation.FrictionCompensation`) at the reference
+    velocity (deg/s): ``-F tanh(rdot / v_ramp)`` counts per axis, negative for a rising reference."""
 
     schedule: GainSchedule
     scheduled: bool = True
     gravity: bool = False
     track_velocity: bool = True
+    friction: bool = False
     name: str = "scheduled"
 
     def initial_memory(self) -> np.ndarray:
@@ -141,6 +145,10 @@ class StateFeedbackController:
         v = sample.velocity[:2] - (sample.reference_velocity[:2] if self.track_velocity else 0.0)
         hold = (bilinear(s.roll_deg, s.pitch_deg, s.u_hold, sample.reference[0], sample.reference[1])
                 if self.gravity else np.zeros(2))
+        if self.friction:
+            if s.friction is None:
+                raise RcmKinError("the friction-compensated controller needs a schedule with its friction feedforward")
+            hold = hold + s.friction.feedforward(sample.reference_velocity[:2])
         u = np.zeros(3)
         u[0] = -(k_roll[0] * e[0] + k_roll[1] * v[0]) + hold[0]
         feedforward = ff[0] * sample.reference_velocity[1] + ff[1] * sample.reference_acceleration[1] + hold[1]
@@ -191,5 +199,6 @@ def make_controller(name: str, schedule: GainSchedule | None = None) -> Controll
         raise RcmKinError(f"unknown controller '{name}' (choose from {', '.join(CONTROLLERS)})")
     if schedule is None:
         raise RcmKinError(f"the '{name}' controller needs a gain schedule")
-    return StateFeedbackController(schedule, scheduled=name != "lqr-fixed", gravity=name == "scheduled-gravity",
-                                   name=name)
+    return StateFeedbackController(schedule, scheduled=name != "lqr-fixed",
+                                   gravity=name in ("scheduled-gravity", "scheduled-friction"),
+                                   friction=name == "scheduled-friction", name=name)
