@@ -7,7 +7,6 @@ relative links only); one end-to-end run of the whole report is marked slow.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import re
 from pathlib import Path
 
@@ -161,19 +160,30 @@ def small_data(tmp_path, shared_data):
     return folder
 
 
-def test_measured_section(small_data, tmp_path, monkeypatch):
-    from rcm_kin.identification import greybox
+def test_measured_section(small_data, tmp_path):
     from rcm_kin.report.sections.measured import measured_section
 
-    monkeypatch.setattr(greybox, "step_logs", functools.partial(greybox.step_logs, samples=150))   # short fits
     out = tmp_path / "report"
     out.mkdir()
     s = measured_section(out, small_data)
     assert s.data_name == "data" and s.holding_points > 0
-    assert [m.joint for m in s.pose_models] == ["roll", "pitch"] and s.greybox is not None
-    html = assert_renders(s, out, {"identification/roll_pose_models.csv", "identification/pitch_pose_models.csv",
-                                   "identification/roll_greybox.png", "identification/roll_greybox.toml"})
+    assert [m.joint for m in s.pose_models] == ["roll", "pitch"]
+    html = assert_renders(s, out, {"identification/roll_pose_models.csv", "identification/pitch_pose_models.csv"})
     assert "Calibration on the holding efforts" in html and str(small_data) not in html
+
+
+def test_drive_train_section(small_data, tmp_path):
+    """The shipped roll drive train against the (two) roll steps of the folder: a row and a figure
+    per log, all linked relatively."""
+    from rcm_kin.report.sections.drive_train import drive_train_section
+
+    out = tmp_path / "report"
+    out.mkdir()
+    s = drive_train_section(out, small_data, cv=False)
+    names = [name for name, _ in s.figures]
+    assert len(names) == 2 and len(s.checks.rows) == 2 and all(n.startswith("roll_step_response") for n in names)
+    html = assert_renders(s, out, {path for _, path in s.figures})
+    assert "[drive_train.roll]" in html and str(small_data) not in html
 
 
 @pytest.mark.slow

@@ -1,5 +1,4 @@
-"""Measured data: calibration on the holding efforts, identification per pose, and the grey-box
-fit of the roll on its step logs."""
+"""Measured data: calibration on the holding efforts and identification per pose."""
 
 from __future__ import annotations
 
@@ -23,13 +22,6 @@ class PoseModels:
 
 
 @dataclass(frozen=True)
-class GreyBox:
-    table: Table           # parameter, starting set, fitted
-    figure: str
-    parameters: str        # the fitted parameter file
-
-
-@dataclass(frozen=True)
 class MeasuredSection:
     template: ClassVar[str] = "measured.html.j2"
     data_name: str         # the data folder's name (no absolute path in the report)
@@ -37,7 +29,6 @@ class MeasuredSection:
     holding_points: int
     residual_rms: tuple[float, float]   # PWM, roll and pitch
     pose_models: tuple[PoseModels, ...]
-    greybox: GreyBox | None
 
 
 def _calibration(data: Path, params) -> tuple[Table, int, tuple[float, float]]:
@@ -62,21 +53,11 @@ def _pose_models(logs: Path, joint: str, method: str, model, folder: Path, out: 
                                                      "physics poles"]), relative(path, out))
 
 
-def _greybox(logs: Path, params, folder: Path, out: Path) -> GreyBox:
-    from rcm_kin.identification.greybox import fit_greybox, step_logs, write_greybox_parameters
-    from rcm_kin.report.figures import greybox_figure
-
-    fit = fit_greybox(params, "roll", step_logs(sorted(logs.glob("*.csv")), "roll"))
-    toml = write_greybox_parameters(fit, folder / "roll_greybox.toml")
-    figure = greybox_figure(fit, folder / "roll_greybox.png")
-    table = Table.of([[n, f"{b:.4g}", f"{a:.4g}"] for n, b, a in zip(fit.names, fit.before, fit.after)],
-                     ["parameter", "starting set", "fitted"])
-    return GreyBox(table, relative(figure, out), relative(toml, out))
-
-
-def measured_section(out: Path, data: Path, greybox: bool = True) -> MeasuredSection:
-    """Calibrate, identify the first ``roll-step`` and ``pitch-prbs`` folders below ``data`` and,
-    with ``greybox``, fit the roll's grey-box parameters; files into ``out/identification``."""
+def measured_section(out: Path, data: Path) -> MeasuredSection:
+    """Calibrate and identify the first ``roll-step`` and ``pitch-prbs`` folders below ``data``;
+    files into ``out/identification``. (The identified drive trains have their own section,
+    :mod:`rcm_kin.report.sections.drive_train`; the smooth grey-box fit they replace stays
+    available as ``rcm-kin greybox``.)"""
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.dynamics.state_space import driven_dynamics
 
@@ -84,12 +65,9 @@ def measured_section(out: Path, data: Path, greybox: bool = True) -> MeasuredSec
     calibration, points, rms = _calibration(data, params)
     model = driven_dynamics(load_robot("psm"), params, coulomb=False)
     folder = output_folder(out / "identification")
-    pose_models, fit = [], None
+    pose_models = []
     for sub, joint, method in LOG_FOLDERS:
         found = sorted(data.glob(f"**/{sub}"))
-        if not found:
-            continue
-        pose_models.append(_pose_models(found[0], joint, method, model, folder, out))
-        if joint == "roll" and greybox:
-            fit = _greybox(found[0], params, folder, out)
-    return MeasuredSection(data.name, calibration, points, rms, tuple(pose_models), fit)
+        if found:
+            pose_models.append(_pose_models(found[0], joint, method, model, folder, out))
+    return MeasuredSection(data.name, calibration, points, rms, tuple(pose_models))
