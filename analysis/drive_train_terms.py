@@ -50,7 +50,7 @@ def main() -> None:
     parser.add_argument("--out", default="drive_train_terms.csv")
     args = parser.parse_args()
     model = base_model(load_drive_parameters())
-    logs, plants, _ = joint_records(catalog([args.data], ("roll",)), model, "roll")
+    logs, plants = joint_records(catalog([args.data], ("roll",)), model, "roll")
     rows = [{"variant": "baseline (b): nearest-pose TF", "in_sample_mean": "",
              **{c.name: (c.fit_percent, c.travel_error) for c in nearest_pose_baseline(logs)}}]
     for terms in VARIANTS:
@@ -58,7 +58,7 @@ def main() -> None:
         friction, _ = fit_friction(search, plants, logs, generations=100)
         in_sample = [check_log(g.name, g.measured, predict_log(friction, p, g), g.period).fit_percent
                      for g, p in zip(logs, plants)]
-        cv, _ = leave_one_out(search, plants, logs, friction, generations=40)
+        cv, _ = leave_one_out(search, plants, logs)
         rows.append({"variant": "+".join(terms) or "viscous+coulomb", "in_sample_mean": float(np.mean(in_sample)),
                      **{c.name: (c.fit_percent, c.travel_error) for c in cv}})
         print(rows[-1]["variant"], f"in-sample {np.mean(in_sample):.1f}",

@@ -15,8 +15,8 @@ def run(capsys, *argv):
 
 
 def test_shipped_roll_drive_train_predicts_every_roll_step_it_was_fitted_on(shared_data, params):
-    """In-sample, the shipped roll model fits each roll-step log above 40 % and ends within 30 %
-    of each measured travel (the left-out figures are the analysis script's and the note's)."""
+    """In-sample, the shipped roll model fits each roll-step log above 45 % and ends within 20 %
+    of each measured travel (the left-out figures are in the shipped file's header)."""
     from rcm_kin.dynamics.stick_slip import axis_plant
     from rcm_kin.identification.drive_train import axis_log, check_log, predict_log
     from rcm_kin.identification.identify import base_model
@@ -26,8 +26,8 @@ def test_shipped_roll_drive_train_predicts_every_roll_step_it_was_fitted_on(shar
         log = axis_log(path, "roll")
         check = check_log(log.name, log.measured, predict_log(params.drive_train["roll"],
                                                              axis_plant(model, "roll", log.pose), log), log.period)
-        assert check.fit_percent > 40.0, check
-        assert check.travel_error < 0.3, check
+        assert check.fit_percent > 45.0, check
+        assert check.travel_error < 0.2, check
 
 
 def test_predict_contract(shared_data, capsys, tmp_path):
@@ -39,8 +39,18 @@ def test_predict_contract(shared_data, capsys, tmp_path):
     assert {"fit_percent", "final_error_deg", "time", "measured", "predicted"} <= set(result)
     assert len(result["time"]) == len(result["measured"]) == len(result["predicted"])
     assert result["measured"][0] == pytest.approx(14.883, abs=0.01)          # the log's own first angle, deg
-    assert result["predicted"][-1] - result["measured"][-1] == pytest.approx(result["final_error_deg"])
-    assert abs(result["final_error_deg"]) < 0.3 and (tmp_path / "p.png").stat().st_size > 10_000
+    assert abs(result["final_error_deg"]) < 0.1 and result["fit_percent"] > 80.0    # the whole log, mostly at rest
+    assert (tmp_path / "p.png").stat().st_size > 10_000
+
+
+def test_predict_refuses_logs_the_model_cannot_speak_for(shared_data, capsys):
+    """A log in raw encoder counts, or with the other axis on its stop, is a one-line error, not
+    a number; --json output is strict JSON."""
+    single = shared_data / "psm-sysid" / "single-axis"
+    for name, joint, reason in (("pitch_speed_ramp_down_response.csv", "roll", "not in degrees"),
+                                ("roll_step.csv", "roll", "on its stop")):
+        code, out, err = run(capsys, "predict", "psm", str(single / name), "--joint", joint, "--json")
+        assert code == 2 and out == "" and err.count("\n") == 1 and reason in err, err
 
 
 def test_predict_user_errors(shared_data, capsys, tmp_path):
@@ -69,7 +79,7 @@ def test_identify_contract(shared_data, capsys, tmp_path):
     loaded = load_drive_parameters(out)
     assert loaded.drive_train["roll"].viscous == pytest.approx(result["parameters"]["roll"]["viscous"], rel=1e-12)
     assert loaded["roll"].extra_inertia == pytest.approx(result["parameters"]["roll"]["extra_inertia"], rel=1e-12)
-    assert np.mean([c["fit_percent"] for c in result["fits"]["roll"].values()]) > 50.0
+    assert np.mean([c["fit_percent"] for c in result["fits"]["roll"].values()]) > 65.0
     code, _, err = run(capsys, "identify", "psm", str(shared_data / "psm-sysid" / "roll-step"), "--joint", "roll",
                        "--out", str(out))
     assert code == 2 and "--force" in err and err.count("\n") == 1

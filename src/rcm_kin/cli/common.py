@@ -86,8 +86,19 @@ def driven_model(params: str | None, coulomb: bool):
 
 
 def emit(args, payload: dict, text: str) -> None:
-    """Print ``payload`` as JSON with ``--json``, else ``text``."""
-    print(json.dumps(payload) if args.json else text)
+    """Print ``payload`` as strict JSON with ``--json`` (NaN and infinities as null), else ``text``."""
+    print(json.dumps(_strict(payload), allow_nan=False) if args.json else text)
+
+
+def _strict(value):
+    """``value`` with every non-finite float replaced by None (JSON null)."""
+    if isinstance(value, float):
+        return value if np.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_strict(v) for v in value]
+    return value
 
 
 def new_output(path: str, force: bool) -> Path:

@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 
 from rcm_kin.cli.common import RAW, add_json, add_params, emit, new_output, psm_robot, require_psm
-from rcm_kin.errors import RcmKinError
 
 EPILOG_IDENTIFY = ("example: rcm-kin identify psm ../shared/data --out identified.toml --cv\n"
                    "         rcm-kin predict psm roll_step_response_roll_0_pitch_0.csv --joint roll "
@@ -17,7 +16,7 @@ EPILOG_EXCITE = ("example: rcm-kin excite psm --duration 60 --out excitation.csv
                  "feedforward PWM counts, every 2.5 ms)")
 EPILOG_PREDICT = ("example: rcm-kin predict psm roll_step_response_roll_0_pitch_0.csv --joint roll --plot roll.png "
                   "--json\n(positions in deg, time in s; the model is driven by the log's recorded PWM, "
-                  "no refitting)")
+                  "no refitting; a closed-loop log from its first rest, re-set at each measured rest)")
 
 
 def add_identify(sub) -> None:
@@ -29,7 +28,8 @@ def add_identify(sub) -> None:
     p.add_argument("--joint", nargs="+", choices=("roll", "pitch"), default=["roll"],
                    help="joints to identify (default: roll; the pitch's closed-loop logs do not determine its model "
                         "yet: --joint pitch fits and reports it, for study)")
-    p.add_argument("--cv", action="store_true", help="leave-one-log-out cross-validation (slower)")
+    p.add_argument("--cv", action="store_true",
+                   help="leave-one-log-out cross-validation, each fold fitted from scratch (minutes)")
     p.add_argument("--seed", type=int, default=0, help="seed of the evolutionary search (default 0)")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     add_params(p, "starting drive parameter TOML (default: the shipped set)")
@@ -81,18 +81,10 @@ def _identify_lines(result) -> list[str]:
 
 def cmd_predict(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.identification.drive_train import check_log, predict_log, whole_log
-    from rcm_kin.identification.identify import base_model
-    from rcm_kin.dynamics.stick_slip import axis_plant
+    from rcm_kin.identification.identify import predict_file
 
     require_psm(args, "predict uses the PSM's drive trains, not the {robot}")
-    params = load_drive_parameters(args.params)
-    if args.joint not in params.drive_train:
-        raise RcmKinError(f"{params.source} has no [drive_train.{args.joint}]: identify one first "
-                          "(rcm-kin identify psm LOGS --out FILE.toml) and pass it with --params")
-    log = whole_log(args.log, args.joint)
-    predicted = predict_log(params.drive_train[args.joint], axis_plant(base_model(params), args.joint, log.pose), log)
-    check = check_log(log.name, log.measured, predicted, log.period)
+    log, predicted, check = predict_file(load_drive_parameters(args.params), args.log, args.joint)
     payload = {"fit_percent": check.fit_percent, "final_error_deg": check.final_error_deg,
                "time": log.time.tolist(), "measured": np.degrees(log.measured).tolist(),
                "predicted": np.degrees(predicted).tolist()}

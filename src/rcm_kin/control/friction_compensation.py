@@ -69,5 +69,8 @@ def friction_compensation(drive: DriveParameters | DriveConstants,
     from rcm_kin.dynamics.state_space import drive_constants
 
     constants = drive_constants(drive) if isinstance(drive, DriveParameters) else drive
+    if np.any(constants.input_gain[:2] >= 0):
+        raise RcmKinError("the friction compensation is written for the PSM's hardware sign (a positive PWM lowers "
+                          "roll and pitch, pwm_sign = -1); this drive has another")
     pwm = np.asarray(constants.coulomb[:2], dtype=float) / np.abs(constants.input_gain[:2])
     return FrictionCompensation((float(pwm[0]), float(pwm[1])), ramp_deg_s)

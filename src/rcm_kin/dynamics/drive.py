@@ -118,25 +118,33 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
     return DriveParameters(joints, offsets, str(path), _drive_train(path, raw.get("drive_train", {})))
 
 
-def _drive_train(path: Path, raw: dict) -> dict[str, AxisFriction]:
-    """The ``[drive_train.<joint>]`` tables: the identified stick-slip model of each joint."""
+def _drive_train(path: Path, raw) -> dict[str, AxisFriction]:
+    """The ``[drive_train.<joint>]`` tables: the identified stick-slip model of each joint. Values
+    are numbers (not booleans), finite, >= 0 but for the presliding slope (|s| <= 20 /rad), and
+    a Stribeck velocity > 0."""
     known = [f.name for f in fields(AxisFriction)]
+    if not isinstance(raw, dict):
+        raise RcmKinError(f"{path}: drive_train must be tables [drive_train.<joint>] ({', '.join(DRIVEN)})")
     out = {}
     for joint, entry in raw.items():
-        if joint not in DRIVEN or not isinstance(entry, dict):
+        if joint not in DRIVEN:
             raise RcmKinError(f"{path}: [drive_train.{joint}] is not a driven joint ({', '.join(DRIVEN)})")
+        if not isinstance(entry, dict):
+            raise RcmKinError(f"{path}: drive_train.{joint} must be a table [drive_train.{joint}] of parameters")
         unknown = sorted(set(entry) - set(known))
         if unknown:
             raise RcmKinError(f"{path}: [drive_train.{joint}] has unknown keys {', '.join(unknown)} "
                               f"(known: {', '.join(known)})")
-        try:
-            values = {k: float(v) for k, v in entry.items()}
-        except (TypeError, ValueError):
-            raise RcmKinError(f"{path}: [drive_train.{joint}] values must be numbers") from None
-        if not all(np.isfinite(v) for v in values.values()) or any(
-                values.get(k, 0.0) < 0 for k in known if k != "presliding_slope"):
-            raise RcmKinError(f"{path}: [drive_train.{joint}] values must be finite, and >= 0 except presliding_slope")
-        out[joint] = AxisFriction(**values)
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in entry.values()):
+            raise RcmKinError(f"{path}: [drive_train.{joint}] values must be numbers")
+        friction = AxisFriction(**{k: float(v) for k, v in entry.items()})
+        values = friction.as_dict()
+        if (not all(np.isfinite(v) for v in values.values()) or abs(friction.presliding_slope) > 20
+                or friction.stribeck_velocity <= 0
+                or any(v < 0 for k, v in values.items() if k != "presliding_slope")):
+            raise RcmKinError(f"{path}: [drive_train.{joint}] values must be finite and >= 0, the stribeck_velocity "
+                              "> 0 and the presliding_slope within +-20 /rad")
+        out[joint] = friction
     return out
 
 

@@ -9,8 +9,9 @@ log counts as much as any other, however far it moved.
 The friction makes the output a non-smooth function of the parameters (a stop moves by a
 whole step when a parameter crosses a threshold), so a gradient method alone ends in the first
 local minimum: a differential-evolution search over the bounded (log-scaled where the range
-spans decades) parameters comes first, then ``least_squares`` polishes and gives the
-covariance of the estimate from its Jacobian.
+spans decades) parameters comes first, then ``least_squares`` polishes; standard errors come
+from a finite-difference Jacobian at the result (local, optimistic) and, with cross-validation,
+from the spread over the leave-one-out folds.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ BOUNDS = {
     "cable_stiffness": (5.0, 1e4, "log"), "cable_damping": (0.0, 30.0), "motor_coulomb": (0.0, 1.0),
     "motor_viscous": (0.0, 10.0),
 }
-DEFAULT_TERMS = ("presliding", "two_mass")
+DEFAULT_TERMS = ("presliding",)
 
 
 @dataclass(frozen=True)
@@ -122,26 +123,36 @@ def whole_log(path: str | Path, joint: str) -> AxisLog:
 def predict_log(friction: AxisFriction, plant: AxisPlant, log: AxisLog) -> np.ndarray:
     """Predicted measured angle (rad) over ``log``: from rest at its first angle under its first
     PWM, then under its recorded PWM. The rest is taken as the static equilibrium the log shows:
-    the rigid-body gravity is shifted by the constant that makes the first PWM hold the first
-    angle, so the model's holding error (the calibration's, 1-2 PWM on roll) does not load the
-    presliding spring or the friction before the step (what the thesis's trimming assumes too)."""
-    plant = at_rest(friction, plant, log.measured[0], log.pwm[0])
-    state = rest_state(friction, plant, log.measured[0], log.pwm[0])
-    out = simulate_axis(friction, plant, log.pwm[1:], log.period, state,
-                        None if log.rests is None else log.rests[1:])
+    the rigid-body gravity is shifted by the constant that makes the first PWM hold the link there
+    (:func:`at_rest`), so the model's holding error (the calibration's, 1-2 PWM on roll) does not
+    load the presliding spring or the friction before the step (what the thesis's trimming
+    assumes too). Sample convention: ``measured[k]`` is the angle at ``t_k``, and ``pwm[k]`` is
+    held from ``t_k``; the prediction at ``t_k`` is the state after ``pwm[0..k-1]``."""
+    plant, state = at_rest(friction, plant, log.measured[0], log.pwm[0])
+    out = simulate_axis(friction, plant, log.pwm[:-1], log.period, state,
+                        None if log.rests is None else log.rests[:-1])
     return np.r_[log.measured[0], out]
 
 
-def at_rest(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float) -> AxisPlant:
-    """``plant`` with its gravity shifted so that ``pwm`` holds ``angle`` (rad) exactly."""
-    unbalanced = plant.input_gain * pwm - np.interp(angle, plant.grid, plant.gravity)
-    return replace(plant, gravity=plant.gravity + unbalanced)
+def at_rest(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float) -> tuple[AxisPlant, np.ndarray]:
+    """``plant`` with its gravity shifted so that ``pwm`` holds the axis at rest with the measured
+    (motor-side) angle ``angle`` (rad), and that rest state (:func:`rest_state`: the link behind
+    the cable's stretch, the presliding spring relaxed)."""
+    state = rest_state(friction, plant, angle, pwm)
+    unbalanced = plant.input_gain * pwm - np.interp(state[2], plant.grid, plant.gravity)
+    plant = replace(plant, gravity=plant.gravity + unbalanced)
+    return plant, rest_state(friction, plant, angle, pwm)
 
 
 def fit_percent(measured: np.ndarray, predicted: np.ndarray) -> float:
     """NRMSE fit in percent (MATLAB's ``compare``): 100 (1 - |y - yhat| / |y - mean y|)."""
     spread = np.linalg.norm(measured - measured.mean())
     return float(100.0 * (1.0 - np.linalg.norm(measured - predicted) / spread)) if spread > 0 else float("nan")
+
+
+def _logged(name: str) -> bool:
+    """Whether the parameter ``name`` is searched on a log scale."""
+    return len(BOUNDS[name]) == 3
 
 
 @dataclass(frozen=True)
@@ -152,16 +163,18 @@ class Search:
     free: tuple[str, ...]
 
     def bounds(self) -> list[tuple[float, float]]:
-        return [tuple(np.log(BOUNDS[n][:2])) if len(BOUNDS[n]) == 3 else BOUNDS[n] for n in self.free]
+        return [tuple(np.log(BOUNDS[n][:2])) if _logged(n) else BOUNDS[n] for n in self.free]
 
     def friction(self, x) -> AxisFriction:
-        values = {n: (float(np.exp(v)) if len(BOUNDS[n]) == 3 else float(v)) for n, v in zip(self.free, x)}
+        values = {n: (float(np.exp(v)) if _logged(n) else float(v)) for n, v in zip(self.free, x)}
         return replace(self.base, **values)
 
     def start(self, friction: AxisFriction) -> np.ndarray:
+        """``friction``'s free parameters in the search coordinates (inside the bounds)."""
         lo, hi = np.array(self.bounds()).T
-        x = [np.log(getattr(friction, n)) if len(BOUNDS[n]) == 3 else getattr(friction, n) for n in self.free]
-        return np.clip(np.nan_to_num(np.array(x, dtype=float), neginf=lo.min()), lo, hi)
+        x = [np.log(max(getattr(friction, n), BOUNDS[n][0])) if _logged(n) else getattr(friction, n)
+             for n in self.free]
+        return np.clip(np.array(x, dtype=float), lo, hi)
 
 
 def search_for(terms) -> Search:
@@ -188,7 +201,7 @@ def residuals(friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLo
 
 
 def fit_friction(search: Search, plants: list[AxisPlant], logs: list[AxisLog], seed: int = 0,
-                 start: AxisFriction | None = None, generations: int = 100, floor: float = 0.0,
+                 generations: int = 100, floor: float = 0.0,
                  progress=None) -> tuple[AxisFriction, np.ndarray]:
     """Shared parameters over ``logs``: evolution then least squares (``floor``: see
     :func:`residuals`). Returns the estimate and the standard errors of the free parameters (in
@@ -196,9 +209,8 @@ def fit_friction(search: Search, plants: list[AxisPlant], logs: list[AxisLog], s
     if not logs:
         raise RcmKinError("identification needs at least one step log")
     objective = lambda x: float(np.sum(residuals(search.friction(x), plants, logs, floor) ** 2))  # noqa: E731
-    init = "latinhypercube" if start is None else _population(search, start, seed)
     evolved = differential_evolution(objective, search.bounds(), seed=seed, maxiter=generations, popsize=8,
-                                     tol=1e-6, polish=False, init=init,
+                                     tol=1e-6, polish=False,
                                      callback=(lambda *a, **k: progress()) if progress else None)
     lo, hi = np.array(search.bounds()).T
     residual = lambda x: residuals(search.friction(x), plants, logs, floor)  # noqa: E731
@@ -207,35 +219,37 @@ def fit_friction(search: Search, plants: list[AxisPlant], logs: list[AxisLog], s
     return search.friction(best), _standard_errors(search, residual, best)
 
 
-def _population(search: Search, start: AxisFriction, seed: int) -> np.ndarray:
-    """A random population around the whole box with ``start`` as one member."""
-    rng = np.random.default_rng(seed)
+def _jacobian(search: Search, function, x: np.ndarray, step: float = 1e-2) -> np.ndarray:
+    """Derivative of ``function`` in the search coordinates by differences of ``step`` (1 % for
+    the log-scaled parameters): wide enough to see through the friction's small
+    discontinuities; central inside the bounds, one-sided at them (never outside the box)."""
     lo, hi = np.array(search.bounds()).T
-    population = lo + rng.random((8 * len(search.free), lo.size)) * (hi - lo)
-    population[0] = search.start(start)
-    return population
-
-
-def _standard_errors(search: Search, residual, x, step: float = 1e-2) -> np.ndarray:
-    """Gauss-Newton standard errors ``sqrt(diag(s^2 (J^T J)^-1))`` with ``J`` by central
-    differences of ``step`` in the search coordinates (1 % for the log-scaled parameters): wide
-    enough to see through the friction's small discontinuities. Mapped to the parameters' units
-    (log-scaled ones through ``d p = p d log p``); NaN for a parameter the logs do not determine."""
-    r = residual(x)
-    J = np.empty((r.size, x.size))
+    J = []
     for k in range(x.size):
-        e = np.zeros(x.size)
-        e[k] = step
-        J[:, k] = (residual(x + e) - residual(x - e)) / (2 * step)
-    dof = max(r.size - x.size, 1)
-    information = J.T @ J
+        up, down = x.copy(), x.copy()
+        up[k], down[k] = min(x[k] + step, hi[k]), max(x[k] - step, lo[k])
+        J.append((function(up) - function(down)) / (up[k] - down[k]))
+    return np.column_stack(J)
+
+
+def _sigma(search: Search, x: np.ndarray, information: np.ndarray, variance: float) -> np.ndarray:
+    """``sqrt(diag(variance (J^T J)^-1))`` mapped to the parameters' units (log-scaled ones through
+    ``d p = p d log p``); NaN for a parameter the data do not move."""
     sigma = np.full(x.size, np.nan)
     seen = np.diag(information) > 0
     if seen.any():
-        cov = np.linalg.pinv(information[np.ix_(seen, seen)]) * (r @ r) / dof
+        cov = np.linalg.pinv(information[np.ix_(seen, seen)]) * variance
         sigma[seen] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    scale = np.array([np.exp(v) if len(BOUNDS[n]) == 3 else 1.0 for n, v in zip(search.free, x)])
-    return sigma * scale
+    return sigma * np.array([np.exp(v) if _logged(n) else 1.0 for n, v in zip(search.free, x)])
+
+
+def _standard_errors(search: Search, residual, x) -> np.ndarray:
+    """Gauss-Newton standard errors with the residual variance estimated from the fit. Local and
+    optimistic: the samples of a log are far from independent, and the model's own error, not
+    noise, dominates the residual (the leave-one-out spread is the honest figure)."""
+    r = residual(x)
+    J = _jacobian(search, residual, x)
+    return _sigma(search, x, J.T @ J, (r @ r) / max(r.size - x.size, 1))
 
 
 @dataclass(frozen=True)
@@ -269,16 +283,17 @@ def check_log(name: str, measured: np.ndarray, predicted: np.ndarray, period: fl
                     stick_time(predicted, period))
 
 
-def leave_one_out(search: Search, plants: list[AxisPlant], logs: list[AxisLog], start: AxisFriction,
-                  seed: int = 0, generations: int = 40, floor: float = 0.0,
+def leave_one_out(search: Search, plants: list[AxisPlant], logs: list[AxisLog], seed: int = 0,
+                  generations: int = 100, floor: float = 0.0,
                   progress=None) -> tuple[list[LogCheck], list[AxisFriction]]:
-    """Each log predicted by the model fitted on all the others (warm-started from ``start``);
-    the checks, and the parameters of each fold. ``progress()``: once per generation."""
+    """Each log predicted by the model fitted on all the others, each fold searched from scratch
+    (nothing fitted on the left-out log seeds it); the checks, and the parameters of each fold.
+    ``progress()``: once per generation."""
     checks, folds = [], []
     for k, log in enumerate(logs):
         rest = [i for i in range(len(logs)) if i != k]
         friction, _ = fit_friction(search, [plants[i] for i in rest], [logs[i] for i in rest], seed=seed,
-                                   start=start, generations=generations, floor=floor, progress=progress)
+                                   generations=generations, floor=floor, progress=progress)
         checks.append(check_log(log.name, log.measured, predict_log(friction, plants[k], log), log.period))
         folds.append(friction)
     return checks, folds
@@ -293,25 +308,24 @@ def jackknife_errors(folds: list[AxisFriction], names) -> dict[str, float]:
     return dict(zip(names, map(float, spread)))
 
 
-def predicted_standard_errors(search: Search, friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLog],
-                              noise: float, step: float = 1e-2) -> dict[str, float]:
-    """Gauss-Newton standard errors of ``search.free`` at ``friction`` if ``logs`` were measured
-    with white noise of ``noise`` rad RMS on every angle sample (assumed, not estimated from
-    residuals): ``sqrt(diag(noise^2 (J^T J)^-1))``, ``J`` the Jacobian of the predicted angles
-    by central differences taken as :func:`_standard_errors` takes it. For an experiment not run
-    yet, ``logs`` carry the model's own prediction (:mod:`rcm_kin.identification.excitation`)."""
+def predicted_standard_errors(friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLog],
+                              noise: float) -> dict[str, float]:
+    """Gauss-Newton standard errors of the free parameters of ``friction``'s own terms
+    (:func:`terms_of`) at ``friction`` if ``logs`` were measured with white noise of ``noise`` rad
+    RMS on every angle sample (assumed, not estimated): ``sqrt(diag(noise^2 (J^T J)^-1))``, ``J``
+    the Jacobian of the predicted angles. For an experiment not run yet, ``logs`` carry the
+    model's own prediction (:mod:`rcm_kin.identification.excitation`)."""
+    search = search_for(terms_of(friction))
     x = search.start(friction)
     angles = lambda x: np.concatenate([predict_log(search.friction(x), p, log)  # noqa: E731
                                        for p, log in zip(plants, logs)])
-    J = np.empty((sum(log.pwm.size for log in logs), x.size))
-    for k in range(x.size):
-        e = np.zeros(x.size)
-        e[k] = step
-        J[:, k] = (angles(x + e) - angles(x - e)) / (2 * step * noise)
-    information = J.T @ J
-    sigma = np.full(x.size, np.nan)
-    seen = np.diag(information) > 0
-    if seen.any():
-        sigma[seen] = np.sqrt(np.clip(np.diag(np.linalg.pinv(information[np.ix_(seen, seen)])), 0.0, None))
-    scale = np.array([np.exp(v) if len(BOUNDS[n]) == 3 else 1.0 for n, v in zip(search.free, x)])
-    return dict(zip(search.free, map(float, sigma * scale)))
+    J = _jacobian(search, angles, x)
+    return dict(zip(search.free, map(float, _sigma(search, x, J.T @ J, noise**2))))
+
+
+def terms_of(friction: AxisFriction) -> tuple[str, ...]:
+    """The terms a parameter set has on: static friction above the sliding level, a presliding
+    spring, a compliant cable."""
+    on = {"stiction": friction.static > friction.coulomb, "presliding": friction.presliding_stiffness > 0,
+          "two_mass": friction.cable_stiffness > 0}
+    return tuple(t for t in TERMS if on[t])

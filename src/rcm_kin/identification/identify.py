@@ -12,6 +12,7 @@ the gain schedule use, taken from the identified ones.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
@@ -21,12 +22,13 @@ from rcm_kin.dynamics.stick_slip import AxisFriction, AxisPlant, axis_plant
 from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.drive_train import (DEFAULT_TERMS, AxisLog, LogCheck, axis_log, check_log, closed_loop_log,
                                                 fit_friction, jackknife_errors, leave_one_out, predict_log,
-                                                search_for)
-from rcm_kin.identification.log_catalog import CatalogEntry, catalog
+                                                search_for, whole_log)
+from rcm_kin.identification.log_catalog import CatalogEntry, catalog, classify
+from rcm_kin.identification.telemetry import load_telemetry
 from rcm_kin.robot import load_robot
 
 CLOSED_LOOP_SPAN = 6.0         # s of each closed-loop log used, from its first rest
-GENERATIONS = (100, 40)         # evolutionary search: the fit on all logs, each cross-validation fold
+GENERATIONS = (100, 100)        # evolutionary search: the fit on all logs, each cross-validation fold
 FLOOR = np.radians(0.2)         # rad RMS: least spread a closed-loop record is scaled by
 
 @dataclass(frozen=True)
@@ -87,9 +89,7 @@ def identify_joint(joint: str, logs: list[AxisLog], plants: list[AxisPlant], cv:
                  for log, p in zip(logs, plants))
     checks, folds = [], []
     if cv:
-        if len(logs) < 2:
-            raise RcmKinError(f"cross-validation of the {joint} needs at least 2 logs")
-        checks, folds = leave_one_out(search, plants, logs, friction, seed=seed, generations=GENERATIONS[1],
+        checks, folds = leave_one_out(search, plants, logs, seed=seed, generations=GENERATIONS[1],
                                       floor=floor, progress=progress)
     return JointIdentification(joint, friction, dict(zip(search.free, map(float, sigma))),
                                jackknife_errors(folds, search.free) if folds else {},
@@ -109,6 +109,8 @@ def identify(paths, params: DriveParameters | None = None, joints=("roll",), cv:
         if not records[joint][0]:
             reasons = "; ".join(f"{e.path.name}: {e.reason}" for e in entries if e.joint == joint)
             raise RcmKinError(f"no log can identify the {joint}: {reasons or 'none given'}")
+        if cv and len(records[joint][0]) < 2:
+            raise RcmKinError(f"cross-validation of the {joint} needs at least 2 logs, got {records[joint][0][0].name}")
     total = sum(GENERATIONS[0] + (len(logs) * GENERATIONS[1] if cv else 0) for logs, _ in records.values())
     results = {}
     with tqdm(total=total, desc="identify", unit="generation", disable=not progress) as bar:
@@ -127,3 +129,24 @@ def with_drive_trains(params: DriveParameters, frictions: dict[str, AxisFriction
         params = with_joint(params, joint, extra_inertia=f.extra_inertia, viscous=f.viscous + f.motor_viscous,
                             coulomb=f.coulomb + f.motor_coulomb + f.presliding_force)
     return replace(params, drive_train={**params.drive_train, **frictions})
+
+
+def predict_file(params: DriveParameters, path, joint: str) -> tuple[AxisLog, np.ndarray, LogCheck]:
+    """The identified ``joint`` model on the log at ``path``, no refitting: a step log from its
+    first sample (at rest) under its recorded PWM; a closed-loop log from its first rest, open
+    loop from each measured rest to the next (:func:`closed_loop_log`). A log the model cannot
+    speak for (:func:`classify`'s reasons), or a prediction that leaves the model's range, is a
+    clear error. Returns the record, the predicted angle (rad) and its check."""
+    if joint not in params.drive_train:
+        raise RcmKinError(f"{params.source} has no [drive_train.{joint}]: identify one first "
+                          "(rcm-kin identify psm LOGS --out FILE.toml) and pass it with --params")
+    kind, reason = classify(load_telemetry(path), joint)
+    if kind == "skipped":
+        raise RcmKinError(f"{Path(path).name}: cannot predict the {joint}: {reason}")
+    log = whole_log(path, joint) if kind == "step" else closed_loop_log(path, joint)
+    predicted = predict_log(params.drive_train[joint], axis_plant(base_model(params), joint, log.pose), log)
+    check = check_log(log.name, log.measured, predicted, log.period)
+    if not (np.all(np.isfinite(predicted)) and np.isfinite(check.fit_percent)):
+        raise RcmKinError(f"{log.name}: the {joint} model's prediction is not finite (is [drive_train.{joint}] "
+                          "sensible?)")
+    return log, predicted, check

@@ -81,7 +81,8 @@ def catalog(paths, joints=("roll", "pitch")) -> list[CatalogEntry]:
         try:
             log = load_telemetry(file)
         except RcmKinError as exc:
-            out += [CatalogEntry(file, joint, "skipped", str(exc)) for joint in joints]
+            reason = str(exc).removeprefix(f"{file}: ")
+            out += [CatalogEntry(file, joint, "skipped", reason) for joint in joints]
             continue
         for joint in joints:
             out.append(CatalogEntry(file, joint, *classify(log, joint)))

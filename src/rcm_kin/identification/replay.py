@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters
-from rcm_kin.dynamics.stick_slip import axis_plant, rest_state, simulate_axis
+from rcm_kin.dynamics.stick_slip import axis_plant, simulate_axis
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import ENCODER_COUNT, FIRMWARE_PERIOD, HOME_INSERTION, P_GAINS, PWM_LIMIT
 
@@ -47,21 +47,20 @@ HOLD_POSE = np.array([0.0, 0.0, HOME_INSERTION])
 def closed_loop_record(friction, plant, joint: str, setpoint: np.ndarray, feedforward: np.ndarray,
                        period: float = FIRMWARE_PERIOD) -> tuple[np.ndarray, np.ndarray]:
     """What a log of the replay would record on the stick-slip model (rad, counts): from rest at
-    ``setpoint[0]``, the firmware's PWM ``feedforward - Kp (setpoint - angle)`` (the thesis's P
-    gain, :data:`rcm_kin.hardware.P_GAINS`, on the last sample's angle), saturated at
-    :data:`PWM_LIMIT`. In :func:`predict_log`'s convention, so that it reproduces the record
-    from the recorded PWM."""
+    ``setpoint[0]``, each period the firmware reads the angle and sends ``feedforward - Kp
+    (setpoint - angle)`` (the thesis's P gain, :data:`rcm_kin.hardware.P_GAINS`), saturated at
+    :data:`PWM_LIMIT`. In :func:`predict_log`'s sample convention, so that it reproduces the
+    record from the recorded PWM."""
     from rcm_kin.identification.drive_train import at_rest
 
     i = DRIVEN.index(joint)
-    plant = at_rest(friction, plant, setpoint[0], feedforward[0])
-    state = rest_state(friction, plant, setpoint[0], feedforward[0])
+    plant, state = at_rest(friction, plant, setpoint[0], feedforward[0])
     angle, pwm = np.empty(setpoint.size), np.empty(setpoint.size)
     angle[0], pwm[0] = setpoint[0], feedforward[0]
     for k in range(1, setpoint.size):
-        error = np.degrees(setpoint[k - 1] - angle[k - 1])
+        angle[k] = simulate_axis(friction, plant, pwm[k - 1:k], period, state)[0]
+        error = np.degrees(setpoint[k] - angle[k])
         pwm[k] = np.clip(feedforward[k] - P_GAINS[i] * error, -PWM_LIMIT[i], PWM_LIMIT[i])
-        angle[k] = simulate_axis(friction, plant, pwm[k:k + 1], period, state)[0]
     return angle, pwm
 
 
@@ -70,14 +69,14 @@ def stick_slip_errors(model, params: DriveParameters, joint: str, setpoint: np.n
     """The shipped drive train's predicted standard errors from the log of the replay of
     ``setpoint`` (rad) with ``feedforward`` (counts) (:func:`closed_loop_record`), its angle
     measured with the encoder's quantisation noise; and the recorded angle (rad)."""
-    from rcm_kin.identification.drive_train import DEFAULT_TERMS, AxisLog, predicted_standard_errors, search_for
+    from rcm_kin.identification.drive_train import AxisLog, predicted_standard_errors
 
     friction = params.drive_train[joint]
     plant = axis_plant(model, joint, HOLD_POSE)
     angle, pwm = closed_loop_record(friction, plant, joint, setpoint, feedforward)
     log = AxisLog(f"excitation ({joint})", joint, FIRMWARE_PERIOD, pwm, angle, HOLD_POSE.copy())
     noise = np.radians(ENCODER_COUNT[DRIVEN.index(joint)]) / np.sqrt(12)
-    return predicted_standard_errors(search_for(DEFAULT_TERMS), friction, [plant], [log], noise), angle
+    return predicted_standard_errors(friction, [plant], [log], noise), angle
 
 
 def write_excitation(excitation: Excitation, path: str | Path) -> Path:

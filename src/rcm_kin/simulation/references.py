@@ -70,6 +70,8 @@ def load_mtm_trajectory(path: str | Path | None = None) -> tuple[np.ndarray, np.
             rows = list(csv.reader(fh))
     except OSError as exc:
         raise RcmKinError(f"cannot read the MTM trajectory {source}: {exc.strerror}") from None
+    except (UnicodeDecodeError, csv.Error):
+        raise RcmKinError(f"{source}: not an MTM trajectory (not a CSV text file)") from None
     header = [h.strip() for h in rows[0]] if rows else []
     missing = [c for c in ("unix_time", "x", "y", "z") if c not in header]
     if missing:
