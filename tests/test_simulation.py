@@ -224,3 +224,22 @@ def test_every_controller_is_a_controller(psm):
     schedule = schedule_gains(driven_dynamics(psm, coulomb=False), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
     for name in CONTROLLERS:
         assert isinstance(make_controller(name, schedule), Controller)
+
+
+def test_thesis_controller_applies_the_flashed_law_and_signs():
+    """The thesis's tables as flashed (Tables 4.4-4.8, bilinear at the measured pose): at the grid
+    point (roll 0, pitch 0) the command is exactly u = -(Kp e + Kd v) with the table's positive Kd
+    on the measured velocity itself (under the -1 hardware sign, positive feedback of velocity:
+    the firmware's law, kept on purpose), and the pitch integral grows by e T."""
+    from rcm_kin.control import thesis_reference
+    from rcm_kin.simulation.controllers import Sample, ThesisController
+
+    c = ThesisController()
+    e, v = np.array([0.5, -0.2]), np.array([3.0, -4.0])
+    sample = Sample(np.array([0.0, 0.0, 0.08]), np.r_[v, 0.0], np.array([e[0], e[1], 0.08]), np.zeros(3),
+                    np.zeros(3), T, np.array([100.0, 150.0, 100.0]))
+    u, memory = c.command(c.initial_memory(), sample)
+    kr, kp = thesis_reference.K_ROLL[1, 1], thesis_reference.K_PITCH[1, 1]
+    assert u[0] == pytest.approx(-(kr[0] * e[0] + kr[1] * v[0]), abs=1e-12)
+    assert memory[0] == pytest.approx(e[1] * T, abs=1e-15)
+    assert u[1] == pytest.approx(-(kp[0] * e[1] + kp[1] * v[1] + kp[2] * e[1] * T), abs=1e-12)
