@@ -64,24 +64,36 @@ class AxisLog:
         return float(np.degrees(self.pose[0])), float(np.degrees(self.pose[1]))
 
 
-def axis_log(path: str | Path, joint: str, after: float = AFTER_STEP, rest_pitch: float | None = None) -> AxisLog:
-    """The step of ``joint`` in the telemetry log at ``path``. A log without the other axis's
-    angle (single-axis experiments) takes ``rest_pitch`` deg for it (default 0)."""
+def whole_log(path: str | Path, joint: str) -> AxisLog:
+    """All of ``joint``'s record in the log at ``path``, from its first sample (taken at rest); the
+    other axis held at its mean logged angle (0 when not logged)."""
     log = load_telemetry(path)
     u, y, period = resample(log, joint, PERIOD)
-    start = step_index(u) - 1
-    stop = min(u.size, start + int(round(after / period)) + 1)
-    if stop - start < 50:
-        raise RcmKinError(f"{Path(path).name}: only {stop - start} samples after the {joint} step")
     pose = np.array([0.0, 0.0, HOME_INSERTION])
     for k, other in enumerate(("roll", "pitch")):
-        if other in log.position:
+        if other in log.position and other != joint:
             pose[k] = np.radians(np.mean(log.position[other]))
-        elif other != joint and rest_pitch is not None:
-            pose[k] = np.radians(rest_pitch)
-    i = ("roll", "pitch").index(joint)
-    pose[i] = np.radians(y[start])
-    return AxisLog(Path(path).name, joint, period, u[start:stop], np.radians(y[start:stop]), pose)
+    pose[("roll", "pitch").index(joint)] = np.radians(y[0])
+    return AxisLog(Path(path).name, joint, period, u, np.radians(y), pose)
+
+
+def _span(record: AxisLog, k0: int, k1: int, name: str, rests: np.ndarray | None = None) -> AxisLog:
+    """Samples ``k0:k1`` of ``record``, its pose taken at ``k0``."""
+    pose = record.pose.copy()
+    pose[("roll", "pitch").index(record.joint)] = record.measured[k0]
+    return AxisLog(name, record.joint, record.period, record.pwm[k0:k1], record.measured[k0:k1], pose,
+                   None if rests is None else rests[k0:k1])
+
+
+def axis_log(path: str | Path, joint: str, after: float = AFTER_STEP) -> AxisLog:
+    """The step of ``joint`` in the telemetry log at ``path``: from the sample before the step
+    (the first PWM change above 0.1 count, the thesis's trimming) for ``after`` s."""
+    record = whole_log(path, joint)
+    start = step_index(record.pwm) - 1
+    stop = min(record.pwm.size, start + int(round(after / record.period)) + 1)
+    if stop - start < 50:
+        raise RcmKinError(f"{record.name}: only {stop - start} samples after the {joint} step")
+    return _span(record, start, stop, record.name)
 
 
 def closed_loop_log(path: str | Path, joint: str, start: float = 0.0, duration: float | None = None,
@@ -101,23 +113,7 @@ def closed_loop_log(path: str | Path, joint: str, start: float = 0.0, duration: 
         raise RcmKinError(f"{record.name}: the {joint} never rests for {min_rest} s after {start} s")
     k0 = int(first[0])
     k1 = record.pwm.size if duration is None else min(record.pwm.size, k0 + int(round(duration / record.period)))
-    pose = record.pose.copy()
-    pose[("roll", "pitch").index(joint)] = record.measured[k0]
-    rests = np.where(resting, record.measured, np.nan)[k0:k1]
-    return AxisLog(f"{record.name}@{record.time[k0]:.1f}s", joint, record.period, record.pwm[k0:k1],
-                   record.measured[k0:k1], pose, rests)
-
-
-def whole_log(path: str | Path, joint: str) -> AxisLog:
-    """All of ``joint``'s record in the log at ``path``, from its first sample (taken at rest)."""
-    log = load_telemetry(path)
-    u, y, period = resample(log, joint, PERIOD)
-    pose = np.array([0.0, 0.0, HOME_INSERTION])
-    for k, other in enumerate(("roll", "pitch")):
-        if other in log.position and other != joint:
-            pose[k] = np.radians(np.mean(log.position[other]))
-    pose[("roll", "pitch").index(joint)] = np.radians(y[0])
-    return AxisLog(Path(path).name, joint, period, u, np.radians(y), pose)
+    return _span(record, k0, k1, f"{record.name}@{record.time[k0]:.1f}s", np.where(resting, record.measured, np.nan))
 
 
 def predict_log(friction: AxisFriction, plant: AxisPlant, log: AxisLog) -> np.ndarray:
