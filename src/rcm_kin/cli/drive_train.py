@@ -16,7 +16,8 @@ EPILOG_EXCITE = ("example: rcm-kin excite psm --duration 60 --out excitation.csv
                  "feedforward PWM counts, every 2.5 ms)")
 EPILOG_PREDICT = ("example: rcm-kin predict psm roll_step_response_roll_0_pitch_0.csv --joint roll --plot roll.png "
                   "--json\n(positions in deg, time in s; the model is driven by the log's recorded PWM, "
-                  "no refitting; a closed-loop log from its first rest, re-set at each measured rest)")
+                  "no refitting; a closed-loop log from its first rest with the controller that ran, read back "
+                  "from the log, in the loop)")
 
 
 def add_identify(sub) -> None:
@@ -26,8 +27,8 @@ def add_identify(sub) -> None:
     p.add_argument("--out", required=True, help="drive parameter TOML to write (the --params set with the "
                                                 "identified drive trains)")
     p.add_argument("--joint", nargs="+", choices=("roll", "pitch"), default=["roll"],
-                   help="joints to identify (default: roll; the pitch's closed-loop logs do not determine its model "
-                        "yet: --joint pitch fits and reports it, for study)")
+                   help="joints to identify (default: roll; --joint pitch fits the pitch in its recorded loop, for study: "
+                        "its logs are too slow to fix its friction at tracking speeds, see the README)")
     p.add_argument("--cv", action="store_true",
                    help="leave-one-log-out cross-validation, each fold fitted from scratch (minutes)")
     p.add_argument("--seed", type=int, default=0, help="seed of the evolutionary search (default 0)")

@@ -155,26 +155,40 @@ def _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h):
 
 
 @numba.njit(cache=True)
-def _run(th, ku, kemf, Jm, grid, gtab, Mtab, pwm, state, period, substeps, rest, angle):
-    """Measured angle (rad) after each held PWM sample of ``pwm``, from ``state`` (in place).
-    Where ``rest[k]``, the axis is known to be at rest at ``angle[k]`` before sample k: its
-    positions are set there and its velocities to 0, the springs keeping their deflection."""
+def _step_period(state, th, pwm, grid, gtab, Mtab, ku, kemf, Jm, h, substeps):
+    for _ in range(substeps):
+        _substep(state, th, pwm, _lookup(state[2], grid, gtab), _lookup(state[2], grid, Mtab), ku, kemf, Jm, h)
+
+
+@numba.njit(cache=True)
+def _run(th, ku, kemf, Jm, grid, gtab, Mtab, pwm, state, period, substeps):
+    """Measured angle (rad) after each held PWM sample of ``pwm``, from ``state`` (in place)."""
     out = np.empty(pwm.size)
     h = period / substeps
     for k in range(pwm.size):
-        if rest[k]:
-            stretch = state[0] - state[2]
-            deflection = state[2] - state[4]
-            state[0] = angle[k]
-            state[2] = angle[k] - stretch
-            state[4] = state[2] - deflection
-            state[1] = 0.0
-            state[3] = 0.0
-        for _ in range(substeps):
-            _substep(state, th, pwm[k], _lookup(state[2], grid, gtab), _lookup(state[2], grid, Mtab),
-                     ku, kemf, Jm, h)
+        _step_period(state, th, pwm[k], grid, gtab, Mtab, ku, kemf, Jm, h, substeps)
         out[k] = state[0]
     return out
+
+
+@numba.njit(cache=True)
+def _run_closed(th, ku, kemf, Jm, grid, gtab, Mtab, law, excitation, state, period, substeps, count):
+    """Measured angle (rad) at each sample under ``pwm_k = clip(law[0] + law[1] y_k + law[2] (y_k -
+    y_k-1) / period + excitation_k, +-law[3])`` with ``y`` the angle the encoder reads (whole
+    ``count``s, rad, from the start; 0: exact), from ``state`` at rest (in place); the PWM applied
+    at each sample is returned too."""
+    out, applied = np.empty(excitation.size), np.empty(excitation.size)
+    h = period / substeps
+    origin = state[0]
+    previous = origin
+    for k in range(excitation.size):
+        y = origin + np.round((state[0] - origin) / count) * count if count > 0.0 else state[0]
+        u = law[0] + law[1] * y + law[2] * (y - previous) / period + excitation[k]
+        u = min(max(u, -law[3]), law[3])
+        previous = y
+        out[k], applied[k] = y, u
+        _step_period(state, th, u, grid, gtab, Mtab, ku, kemf, Jm, h, substeps)
+    return out, applied
 
 
 @numba.njit(cache=True)
@@ -210,17 +224,26 @@ def rest_state(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: floa
 
 
 def simulate_axis(friction: AxisFriction, plant: AxisPlant, pwm: np.ndarray, period: float,
-                  state: np.ndarray, rests: np.ndarray | None = None) -> np.ndarray:
+                  state: np.ndarray) -> np.ndarray:
     """Measured angle (rad) after each of ``pwm``'s samples, each held for ``period`` s, from
-    ``state`` (see :func:`rest_state`; advanced in place). ``rests`` (optional, same length as
-    ``pwm``): the measured angle (rad) where the axis is known to be at rest before a sample, NaN
-    elsewhere; there the state is set to rest at that angle, the springs keeping their load (a
-    closed-loop record is predicted open loop from each rest to the next)."""
+    ``state`` (see :func:`rest_state`; advanced in place)."""
     substeps = max(1, int(np.ceil(period / SUBSTEP - 1e-9)))
-    pwm = np.asarray(pwm, dtype=float)
-    rests = np.full(pwm.size, np.nan) if rests is None else np.asarray(rests, dtype=float)
     return _run(friction.vector(), plant.input_gain, plant.back_emf, plant.rotor_inertia, plant.grid,
-                plant.gravity, plant.inertia, pwm, state, period, substeps, ~np.isnan(rests), np.nan_to_num(rests))
+                plant.gravity, plant.inertia, np.asarray(pwm, dtype=float), state, period, substeps)
+
+
+def simulate_axis_closed(friction: AxisFriction, plant: AxisPlant, law: np.ndarray, excitation: np.ndarray,
+                         period: float, state: np.ndarray, count: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The axis under a linear feedback law sampled every ``period`` s: at sample k the PWM
+    ``clip(law[0] + law[1] y_k + law[2] (y_k - y_k-1) / period + excitation[k], +-law[3])`` (counts;
+    ``y`` the measured angle, rad, in whole encoder ``count``s (rad) from the start, as the
+    firmware reads it; 0: exact; the first difference taken from rest) is held for one period.
+    Returns the measured angle at each sample (before its PWM acts) and the PWM applied, from
+    ``state`` (advanced in place)."""
+    substeps = max(1, int(np.ceil(period / SUBSTEP - 1e-9)))
+    return _run_closed(friction.vector(), plant.input_gain, plant.back_emf, plant.rotor_inertia, plant.grid,
+                       plant.gravity, plant.inertia, np.asarray(law, dtype=float),
+                       np.asarray(excitation, dtype=float), state, period, substeps, count)
 
 
 def axis_plant(model: "DrivenDynamics", joint: str, pose, span: float = np.radians(45.0),

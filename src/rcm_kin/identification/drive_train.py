@@ -1,8 +1,10 @@
-"""Identification of the drive-train model (:mod:`rcm_kin.dynamics.stick_slip`) from step logs.
+"""Identification of the drive-train model (:mod:`rcm_kin.dynamics.stick_slip`) from logs.
 
 Each open-loop step log of one axis is simulated from rest at its measured angle under its
 recorded PWM (held per sample, as the driver holds it), the other axes held where the log
-measured them. The residual of a log is the simulated minus the measured angle divided by the
+measured them. A closed-loop log is simulated with the controller it ran in the loop, read
+back from the log (:mod:`rcm_kin.identification.recorded_law`), under its own excitation. The
+residual of a log is the simulated minus the measured angle divided by the
 measured travel's spread, so the sum of squares is ``sum_logs (1 - fit_percent / 100)^2``: every
 log counts as much as any other, however far it moved.
 
@@ -23,9 +25,10 @@ import numpy as np
 from scipy.optimize import differential_evolution, least_squares
 
 from rcm_kin.dynamics.stick_slip import (NAMES, TERM_PARAMETERS, TERMS, AxisFriction, AxisPlant,
-                                         rest_state, simulate_axis)
+                                         rest_state, simulate_axis, simulate_axis_closed)
 from rcm_kin.errors import RcmKinError
-from rcm_kin.hardware import HOME_INSERTION
+from rcm_kin.hardware import ENCODER_COUNT, HOME_INSERTION, PWM_LIMIT
+from rcm_kin.identification.recorded_law import RecordedLaw, recover_law
 from rcm_kin.identification.records import resample
 from rcm_kin.identification.telemetry import load_telemetry, step_index
 
@@ -44,15 +47,17 @@ DEFAULT_TERMS = ("presliding",)
 
 @dataclass(frozen=True)
 class AxisLog:
-    """One step log of one axis, from the sample before the step, on a uniform grid."""
+    """One log of one axis on a uniform grid: a step from the sample before the step, or a
+    closed-loop record from a rest with the law that ran and its excitation."""
 
     name: str
     joint: str
     period: float            # s
     pwm: np.ndarray          # (n,) counts, held over each period
     measured: np.ndarray     # (n,) rad, the logged angle
-    pose: np.ndarray         # (3,) driven joints (rad, rad, m) where the step started
-    rests: np.ndarray | None = None   # (n,) rad where the log is known at rest, NaN elsewhere (closed loop)
+    pose: np.ndarray         # (3,) driven joints (rad, rad, m) where the record starts
+    law: RecordedLaw | None = None          # closed loop: the controller in the loop
+    excitation: np.ndarray | None = None    # (n,) counts added to the law's PWM (closed loop)
 
     @property
     def time(self) -> np.ndarray:
@@ -64,11 +69,12 @@ class AxisLog:
         return float(np.degrees(self.pose[0])), float(np.degrees(self.pose[1]))
 
 
-def whole_log(path: str | Path, joint: str) -> AxisLog:
-    """All of ``joint``'s record in the log at ``path``, from its first sample (taken at rest); the
-    other axis held at its mean logged angle (0 when not logged)."""
+def whole_log(path: str | Path, joint: str, period: float | None = PERIOD) -> AxisLog:
+    """All of ``joint``'s record in the log at ``path`` on a ``period`` s grid (None: the log's
+    median interval), from its first sample (taken at rest); the other axis held at its mean
+    logged angle (0 when not logged)."""
     log = load_telemetry(path)
-    u, y, period = resample(log, joint, PERIOD)
+    u, y, period = resample(log, joint, period)
     pose = np.array([0.0, 0.0, HOME_INSERTION])
     for k, other in enumerate(("roll", "pitch")):
         if other in log.position and other != joint:
@@ -77,12 +83,13 @@ def whole_log(path: str | Path, joint: str) -> AxisLog:
     return AxisLog(Path(path).name, joint, period, u, np.radians(y), pose)
 
 
-def _span(record: AxisLog, k0: int, k1: int, name: str, rests: np.ndarray | None = None) -> AxisLog:
+def _span(record: AxisLog, k0: int, k1: int, name: str) -> AxisLog:
     """Samples ``k0:k1`` of ``record``, its pose taken at ``k0``."""
     pose = record.pose.copy()
     pose[("roll", "pitch").index(record.joint)] = record.measured[k0]
+    excitation = None if record.excitation is None else record.excitation[k0:k1]
     return AxisLog(name, record.joint, record.period, record.pwm[k0:k1], record.measured[k0:k1], pose,
-                   None if rests is None else rests[k0:k1])
+                   record.law, excitation)
 
 
 def axis_log(path: str | Path, joint: str, after: float = AFTER_STEP) -> AxisLog:
@@ -98,11 +105,15 @@ def axis_log(path: str | Path, joint: str, after: float = AFTER_STEP) -> AxisLog
 
 def closed_loop_log(path: str | Path, joint: str, start: float = 0.0, duration: float | None = None,
                     min_rest: float = 0.05) -> AxisLog:
-    """``duration`` s of a closed-loop log of ``joint`` from its first rest after ``start`` s, with
-    its rests marked (the angle unchanged for at least ``min_rest`` s): the model is driven by
-    the recorded PWM open loop from each rest to the next (a prediction-error form, so an axis
-    that is unstable without its controller can be identified from closed-loop data)."""
-    record = whole_log(path, joint)
+    """``duration`` s of a closed-loop log of ``joint`` on its own sample period, from its first
+    rest (the angle unchanged for at least ``min_rest`` s) after ``start`` s, with the law that ran
+    (:func:`recover_law`) and its excitation. A log whose law is not recovered is a clear error."""
+    law = recover_law(load_telemetry(path), joint, float(PWM_LIMIT[("roll", "pitch").index(joint)]))
+    name = Path(path).name
+    if law.problem():
+        raise RcmKinError(f"{name}: cannot simulate the {joint} in its loop: {law.problem()}")
+    record = whole_log(path, joint, period=None)
+    record = replace(record, law=law, excitation=law.excitation(record.measured, record.pwm, record.period))
     still = np.r_[False, np.diff(record.measured) == 0.0]
     run = np.zeros(still.size, dtype=int)
     for k in range(1, still.size):
@@ -110,23 +121,31 @@ def closed_loop_log(path: str | Path, joint: str, start: float = 0.0, duration: 
     resting = run >= int(round(min_rest / record.period))
     first = np.flatnonzero(resting & (record.time >= start))
     if first.size == 0:
-        raise RcmKinError(f"{record.name}: the {joint} never rests for {min_rest} s after {start} s")
+        raise RcmKinError(f"{name}: the {joint} never rests for {min_rest} s after {start} s")
     k0 = int(first[0])
     k1 = record.pwm.size if duration is None else min(record.pwm.size, k0 + int(round(duration / record.period)))
-    return _span(record, k0, k1, f"{record.name}@{record.time[k0]:.1f}s", np.where(resting, record.measured, np.nan))
+    return _span(record, k0, k1, f"{name}@{record.time[k0]:.1f}s")
 
 
 def predict_log(friction: AxisFriction, plant: AxisPlant, log: AxisLog) -> np.ndarray:
     """Predicted measured angle (rad) over ``log``: from rest at its first angle under its first
-    PWM, then under its recorded PWM. The rest is taken as the static equilibrium the log shows:
+    PWM, then under its recorded PWM (a step) or under its recorded law and excitation (closed
+    loop, :func:`simulate_axis_closed`). The rest is taken as the static equilibrium the log shows:
     the rigid-body gravity is shifted by the constant that makes the first PWM hold the link there
     (:func:`at_rest`), so the model's holding error (the calibration's, 1-2 PWM on roll) does not
     load the presliding spring or the friction before the step (what the thesis's trimming
     assumes too). Sample convention: ``measured[k]`` is the angle at ``t_k``, and ``pwm[k]`` is
-    held from ``t_k``; the prediction at ``t_k`` is the state after ``pwm[0..k-1]``."""
+    held from ``t_k``; the prediction at ``t_k`` is the state after ``pwm[0..k-1]``. A closed-loop
+    record starts at a rest under friction, where the PWM need not balance gravity: there the
+    shift makes the record's mean PWM hold its mean angle (the loop hovers about its holding
+    point; data README: "the mean PWM is close to the pitch holding effort")."""
+    if log.law is not None:
+        plant, _ = at_rest(friction, plant, float(np.mean(log.measured)), float(np.mean(log.pwm)))
+        state = rest_state(friction, plant, log.measured[0], log.pwm[0])
+        count = np.radians(ENCODER_COUNT[("roll", "pitch").index(log.joint)])
+        return simulate_axis_closed(friction, plant, log.law.vector(), log.excitation, log.period, state, count)[0]
     plant, state = at_rest(friction, plant, log.measured[0], log.pwm[0])
-    out = simulate_axis(friction, plant, log.pwm[:-1], log.period, state,
-                        None if log.rests is None else log.rests[:-1])
+    out = simulate_axis(friction, plant, log.pwm[:-1], log.period, state)
     return np.r_[log.measured[0], out]
 
 
@@ -183,33 +202,27 @@ def search_for(terms) -> Search:
     return Search(AxisFriction(), free)
 
 
-def residuals(friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLog],
-              floor: float = 0.0) -> np.ndarray:
-    """Per log, (predicted - measured) / spread of the measured angle, stacked. ``floor`` (rad,
-    RMS): the least spread a log is scaled by, so that windows that barely move (closed-loop
-    logs) do not outweigh the rest."""
+def residuals(friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLog]) -> np.ndarray:
+    """Per log, (predicted - measured) / spread of the measured angle, stacked."""
     out = []
     for plant, log in zip(plants, logs):
         predicted = predict_log(friction, plant, log)
-        spread = max(np.linalg.norm(log.measured - log.measured.mean()), floor * np.sqrt(log.measured.size))
-        out.append((predicted - log.measured) / spread)
+        out.append((predicted - log.measured) / np.linalg.norm(log.measured - log.measured.mean()))
     return np.concatenate(out)
 
 
 def fit_friction(search: Search, plants: list[AxisPlant], logs: list[AxisLog], seed: int = 0,
-                 generations: int = 100, floor: float = 0.0,
-                 progress=None) -> tuple[AxisFriction, np.ndarray]:
-    """Shared parameters over ``logs``: evolution then least squares (``floor``: see
-    :func:`residuals`). Returns the estimate and the standard errors of the free parameters (in
+                 generations: int = 100, progress=None) -> tuple[AxisFriction, np.ndarray]:
+    """Shared parameters over ``logs``: evolution then least squares. Returns the estimate and the standard errors of the free parameters (in
     their own units, NaN where unidentifiable)."""
     if not logs:
         raise RcmKinError("identification needs at least one step log")
-    objective = lambda x: float(np.sum(residuals(search.friction(x), plants, logs, floor) ** 2))  # noqa: E731
+    objective = lambda x: float(np.sum(residuals(search.friction(x), plants, logs) ** 2))  # noqa: E731
     evolved = differential_evolution(objective, search.bounds(), seed=seed, maxiter=generations, popsize=8,
                                      tol=1e-6, polish=False,
                                      callback=(lambda *a, **k: progress()) if progress else None)
     lo, hi = np.array(search.bounds()).T
-    residual = lambda x: residuals(search.friction(x), plants, logs, floor)  # noqa: E731
+    residual = lambda x: residuals(search.friction(x), plants, logs)  # noqa: E731
     polished = least_squares(residual, evolved.x, bounds=(lo, hi), diff_step=1e-4, max_nfev=60)
     best = polished.x if polished.cost * 2 <= evolved.fun else evolved.x
     return search.friction(best), _standard_errors(search, residual, best)
@@ -280,8 +293,7 @@ def check_log(name: str, measured: np.ndarray, predicted: np.ndarray, period: fl
 
 
 def leave_one_out(search: Search, plants: list[AxisPlant], logs: list[AxisLog], seed: int = 0,
-                  generations: int = 100, floor: float = 0.0,
-                  progress=None) -> tuple[list[LogCheck], list[AxisFriction]]:
+                  generations: int = 100, progress=None) -> tuple[list[LogCheck], list[AxisFriction]]:
     """Each log predicted by the model fitted on all the others, each fold searched from scratch
     (nothing fitted on the left-out log seeds it); the checks, and the parameters of each fold.
     ``progress()``: once per generation."""
@@ -289,7 +301,7 @@ def leave_one_out(search: Search, plants: list[AxisPlant], logs: list[AxisLog], 
     for k, log in enumerate(logs):
         rest = [i for i in range(len(logs)) if i != k]
         friction, _ = fit_friction(search, [plants[i] for i in rest], [logs[i] for i in rest], seed=seed,
-                                   generations=generations, floor=floor, progress=progress)
+                                   generations=generations, progress=progress)
         checks.append(check_log(log.name, log.measured, predict_log(friction, plants[k], log), log.period))
         folds.append(friction)
     return checks, folds

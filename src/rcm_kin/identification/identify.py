@@ -27,9 +27,10 @@ from rcm_kin.identification.log_catalog import CatalogEntry, catalog, classify
 from rcm_kin.identification.telemetry import load_telemetry
 from rcm_kin.robot import load_robot
 
-CLOSED_LOOP_SPAN = 6.0         # s of each closed-loop log used, from its first rest
+CLOSED_LOOP_START = 5.0        # s: a closed-loop record starts at the first rest after this
+CLOSED_LOOP_SPAN = 10.0        # s of each closed-loop log used
 GENERATIONS = (100, 100)        # evolutionary search: the fit on all logs, each cross-validation fold
-FLOOR = np.radians(0.2)         # rad RMS: least spread a closed-loop record is scaled by
+TERMS = {"roll": ("presliding",), "pitch": ("presliding", "stiction")}   # per joint: see the note in the README
 
 @dataclass(frozen=True)
 class JointIdentification:
@@ -72,25 +73,24 @@ def base_model(params: DriveParameters) -> DrivenDynamics:
 def joint_records(entries: list[CatalogEntry], model: DrivenDynamics,
                   joint: str) -> tuple[list[AxisLog], list[AxisPlant]]:
     """The step logs and closed-loop records of ``joint`` (one per log file) and their plants."""
-    logs = [axis_log(e.path, joint) if e.kind == "step" else closed_loop_log(e.path, joint, duration=CLOSED_LOOP_SPAN)
+    logs = [axis_log(e.path, joint) if e.kind == "step"
+            else closed_loop_log(e.path, joint, start=CLOSED_LOOP_START, duration=CLOSED_LOOP_SPAN)
             for e in entries if e.joint == joint and e.kind != "skipped"]
     return logs, [axis_plant(model, joint, log.pose) for log in logs]
 
 
-def identify_joint(joint: str, logs: list[AxisLog], plants: list[AxisPlant], cv: bool, terms=DEFAULT_TERMS,
+def identify_joint(joint: str, logs: list[AxisLog], plants: list[AxisPlant], cv: bool, terms=None,
                    seed: int = 0, progress=None) -> JointIdentification:
     """Fit ``joint``'s drive train on ``logs`` (and cross-validate, leaving one log out);
     ``progress()`` is called once per generation of every search."""
-    search = search_for(terms)
-    floor = FLOOR if any(log.rests is not None for log in logs) else 0.0
-    friction, sigma = fit_friction(search, plants, logs, seed=seed, generations=GENERATIONS[0], floor=floor,
-                                   progress=progress)
+    search = search_for(TERMS.get(joint, DEFAULT_TERMS) if terms is None else terms)
+    friction, sigma = fit_friction(search, plants, logs, seed=seed, generations=GENERATIONS[0], progress=progress)
     fits = tuple(check_log(log.name, log.measured, predict_log(friction, p, log), log.period)
                  for log, p in zip(logs, plants))
     checks, folds = [], []
     if cv:
         checks, folds = leave_one_out(search, plants, logs, seed=seed, generations=GENERATIONS[1],
-                                      floor=floor, progress=progress)
+                                      progress=progress)
     return JointIdentification(joint, friction, dict(zip(search.free, map(float, sigma))),
                                jackknife_errors(folds, search.free) if folds else {},
                                tuple(log.name for log in logs), fits, tuple(checks))
@@ -133,8 +133,8 @@ def with_drive_trains(params: DriveParameters, frictions: dict[str, AxisFriction
 
 def predict_file(params: DriveParameters, path, joint: str) -> tuple[AxisLog, np.ndarray, LogCheck]:
     """The identified ``joint`` model on the log at ``path``, no refitting: a step log from its
-    first sample (at rest) under its recorded PWM; a closed-loop log from its first rest, open
-    loop from each measured rest to the next (:func:`closed_loop_log`). A log the model cannot
+    first sample (at rest) under its recorded PWM; a closed-loop log from its first rest with the
+    controller that ran in the loop (:func:`closed_loop_log`). A log the model cannot
     speak for (:func:`classify`'s reasons), or a prediction that leaves the model's range, is a
     clear error. Returns the record, the predicted angle (rad) and its check."""
     if joint not in params.drive_train:

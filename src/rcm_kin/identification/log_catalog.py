@@ -6,13 +6,15 @@ it). Per joint (roll, pitch) a log is
 
 - a **step**: the PWM holds one value for at least ``HOLD`` s, changes once, and holds the new
   value to the end (the roll steps, the pitch step): simulated from the sample before the step;
-- **closed loop**: any other log with motion (PRBS under a controller): predicted open loop
-  from each rest to the next (:func:`rcm_kin.identification.drive_train.closed_loop_log`).
+- **closed loop**: any other log with motion (PRBS under a controller) whose controller can be
+  read back from it (:mod:`rcm_kin.identification.recorded_law`): simulated with that law in
+  the loop (:func:`rcm_kin.identification.drive_train.closed_loop_log`).
 
 Logs are skipped with the reason: an angle column that is not in degrees (the pitch ramp log
 stores raw encoder counts), the other axis missing from a step log (its gravity would be a
 guess), or outside the joint range (resting on its mechanical stop, a contact the model does
-not have), and closed-loop logs in which the joint only holds still. A log without the roll
+not have), closed-loop logs in which the joint only holds still, and closed-loop logs whose
+controller is not a linear law plus a binary excitation (it cannot be put in the loop). A log without the roll
 takes it at 0, as the single-axis experiments were run (data README: "at roll about 0"); a log
 without the pitch is skipped for lack of its pose.
 """
@@ -25,6 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import PWM_LIMIT
+from rcm_kin.identification.recorded_law import recover_law
 from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry
 
 HOLD = 0.5            # s a step's PWM must hold before and after its one change
@@ -61,6 +65,10 @@ def classify(log: TelemetryLog, joint: str) -> tuple[str, str]:
         return "skipped", f"the pitch angle is not logged: its gravity along the {joint} would be a guess"
     if not step and np.ptp(angle) < MIN_MOTION:
         return "skipped", f"the {joint} only holds still ({np.ptp(angle):.2f} deg of motion)"
+    if not step:
+        problem = recover_law(log, joint, float(PWM_LIMIT[("roll", "pitch").index(joint)])).problem()
+        if problem:
+            return "skipped", problem
     return ("step" if step else "closed-loop"), ""
 
 
