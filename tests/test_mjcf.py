@@ -5,14 +5,11 @@ them), and a free swing in MuJoCo follows our closed-chain dynamics."""
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 import pytest
-from scipy.integrate import solve_ivp
-
 from rcm_kin.cli import main
-from rcm_kin.closure.reduced import reduced_mass_matrix
-from rcm_kin.dynamics.drive import DRIVEN
 from rcm_kin.dynamics.gravity import gravity_torque
+from rcm_kin.export.mujoco_check import (actuated_q, at_keyframe, closed_chain_swing, drive_terms, hold_speeds,
+                                         mujoco_swing)
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.robot import load_robot
 
@@ -35,24 +32,11 @@ def psm_model(exported):
     return mujoco.MjModel.from_xml_path(str(exported["psm"]))
 
 
-def _at_key(model, name: str, ctrl=None):
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, model.key(name).id)
-    if ctrl is not None:
-        data.ctrl[:] = ctrl
-    mujoco.mj_forward(model, data)
-    return data
-
-
-def _actuated_q(model, data, robot) -> np.ndarray:
-    return np.array([data.qpos[model.joint(n).qposadr[0]] for n in robot.actuated])
-
-
 @pytest.mark.parametrize("name", ["psm", "mtm", "davinci"])
 def test_export_loads_in_mujoco_without_warnings(exported, name, capfd):
     robot = load_robot(name)
     model = mujoco.MjModel.from_xml_path(str(exported[name]))
-    data = _at_key(model, "home")
+    data = at_keyframe(model, "home")
     for _ in range(100):
         mujoco.mj_step(model, data)
     assert capfd.readouterr().err == "" and data.warning.number.sum() == 0
@@ -74,9 +58,13 @@ def test_export_loads_in_mujoco_without_warnings(exported, name, capfd):
 def test_psm_keyframes_are_home_and_the_thesis_grid(psm_model):
     assert [psm_model.key(i).name for i in range(psm_model.nkey)] == ["home"] + GRID
     psm = load_robot("psm")
-    data = _at_key(psm_model, "roll-30_pitch30")
-    np.testing.assert_allclose(_actuated_q(psm_model, data, psm)[:3], [np.radians(-30), np.radians(30), 0.08],
+    data = at_keyframe(psm_model, "roll-30_pitch30")
+    np.testing.assert_allclose(actuated_q(psm_model, data, psm)[:3], [np.radians(-30), np.radians(30), 0.08],
                                rtol=0, atol=1e-15)
+    for i in range(psm_model.nkey):     # each keyframe's controls hold it: our gravity, the loop-solve way
+        q = actuated_q(psm_model, at_keyframe(psm_model, psm_model.key(i).name), psm)
+        np.testing.assert_allclose(psm_model.key(i).ctrl, gravity_torque(psm, q, method="constrained"),
+                                   rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("key", ["home"] + GRID)
@@ -84,20 +72,12 @@ def test_mujoco_kinematics_closes_the_loops_and_places_our_frames(psm_model, key
     """MuJoCo's forward kinematics at a keyframe: the two sites of each loop coincide (the passive
     joints are closed) and the frames of interest sit where our FK puts them."""
     psm = load_robot("psm")
-    data = _at_key(psm_model, key)
+    data = at_keyframe(psm_model, key)
     for loop in psm.description.loops:
         np.testing.assert_allclose(data.site(f"{loop.name}_a").xpos, data.site(f"{loop.name}_b").xpos, rtol=0, atol=1e-12)
-    q = _actuated_q(psm_model, data, psm)
+    q = actuated_q(psm_model, data, psm)
     for frame in psm.description.frames:
         np.testing.assert_allclose(data.site(frame).xpos, frame_placement(psm, q, frame).translation, rtol=0, atol=1e-12)
-
-
-def _max_speeds(model, data, seconds: float) -> dict[str, float]:
-    speed = np.zeros(model.nv)
-    for _ in range(round(seconds / model.opt.timestep)):
-        mujoco.mj_step(model, data)
-        speed = np.maximum(speed, np.abs(data.qvel))
-    return {model.joint(j).name: speed[model.joint(j).dofadr[0]] for j in range(model.njnt)}
 
 
 @pytest.mark.parametrize("key", ["home"] + GRID)
@@ -108,26 +88,12 @@ def test_motors_holding_our_gravity_torques_keep_the_arm_at_rest(psm_model, key)
     equilibrium (growth rate up to 18 /s by our linearisation, e^9 in 0.5 s) that the start-up
     transient of MuJoCo's soft loop constraints tips over, so it is not asserted there."""
     psm = load_robot("psm")
-    q = _actuated_q(psm_model, _at_key(psm_model, key), psm)
-    held = _max_speeds(psm_model, _at_key(psm_model, key, gravity_torque(psm, q, method="constrained")), 0.5)
+    q = actuated_q(psm_model, at_keyframe(psm_model, key), psm)
+    held = hold_speeds(psm_model, at_keyframe(psm_model, key, gravity_torque(psm, q, method="constrained")), 0.5)
     arm = {j: v for j, v in held.items() if j not in INSTRUMENT or key == "home"}
     assert max(arm.values()) < 1e-3, arm
-    fallen = _max_speeds(psm_model, _at_key(psm_model, key, np.zeros(psm.nq)), 0.5)
+    fallen = hold_speeds(psm_model, at_keyframe(psm_model, key, np.zeros(psm.nq)), 0.5)
     assert max(v for j, v in fallen.items() if j not in INSTRUMENT) > 0.05
-
-
-def _our_swing(psm, q0: np.ndarray, times: np.ndarray, armature: np.ndarray, damping: np.ndarray) -> np.ndarray:
-    """Free motion from rest of our reduced (mimic-joint) model plus the drives' armature and
-    viscous damping: ``(M + diag(armature)) a = -rnea(q, v, 0) - damping v``."""
-    def xdot(_, x):
-        q, v = x[:psm.nq], x[psm.nq:]
-        bias = psm.from_reduced(pin.rnea(psm.reduced, psm.reduced_data, psm.to_reduced(q), psm.to_reduced(v),
-                                         np.zeros(psm.reduced.nv)))
-        return np.concatenate([v, np.linalg.solve(reduced_mass_matrix(psm, q) + np.diag(armature),
-                                                  -bias - damping * v)])
-    solution = solve_ivp(xdot, (0.0, times[-1]), np.concatenate([q0, np.zeros(psm.nq)]), t_eval=times,
-                         method="DOP853", rtol=1e-10, atol=1e-12)
-    return solution.y[:psm.nq].T
 
 
 def test_free_swing_follows_our_dynamics(exported, params):
@@ -136,24 +102,19 @@ def test_free_swing_follows_our_dynamics(exported, params):
     and our closed-chain dynamics agree to 1e-4 of each joint's travel. Why 1e-4: MuJoCo's loop
     constraints are soft, regularised by (1 - d)/d = 1e-4 of their inertia at our impedance
     d = 0.9999; the difference does not shrink with the step (0.5, 0.25, 0.1 ms agree to 3 digits),
-    so it is that regularisation, not the integration."""
+    so it is that regularisation, not the integration. Without the loop constraints MuJoCo's arm
+    leaves ours by far more: the comparison sees the loops."""
     psm = load_robot("psm")
     model = mujoco.MjModel.from_xml_path(str(exported["psm"]))
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_LIMIT
     model.dof_frictionloss[:] = 0.0
-    data = _at_key(model, "home", np.zeros(psm.nq))
     times = np.arange(0.0, 1.0 + 1e-9, 0.01)
-    theirs = [_actuated_q(model, data, psm)]
-    for _ in times[1:]:
-        for _ in range(round(0.01 / model.opt.timestep)):
-            mujoco.mj_step(model, data)
-        theirs.append(_actuated_q(model, data, psm))
-    armature, damping = np.zeros(psm.nq), np.zeros(psm.nq)
-    for joint in DRIVEN:
-        i = psm.actuated.index(joint)
-        armature[i], damping[i] = params[joint].reflected_inertia, params[joint].viscous
-    ours = _our_swing(psm, theirs[0], times, armature, damping)
+    theirs = mujoco_swing(model, at_keyframe(model, "home", np.zeros(psm.nq)), psm, times)
+    ours = closed_chain_swing(psm, theirs[0], times, *drive_terms(psm, params))
     travel = np.max(np.abs(ours - ours[0]), axis=0)
     assert travel[psm.actuated.index("pitch")] > 0.3          # it does swing
-    np.testing.assert_array_less(np.max(np.abs(np.array(theirs) - ours), axis=0), 1e-4 * travel + 1e-12)
+    np.testing.assert_array_less(np.max(np.abs(theirs - ours), axis=0), 1e-4 * travel + 1e-12)
+    model.eq_active0[:] = 0
+    open_tree = mujoco_swing(model, at_keyframe(model, "home", np.zeros(psm.nq)), psm, times)
+    assert np.max(np.abs(open_tree - ours)[:, psm.actuated.index("pitch")]) > 100 * 1e-4 * travel[1]
