@@ -27,6 +27,7 @@ from rcm_kin.visualization.views import robot_view, show, write_html
 if TYPE_CHECKING:
     from rcm_kin.robot import Robot
 
+HIDE_CONTROLS = ".dg{display:none !important}"   # CSS: the screenshot leaves out meshcat's control panel (dat.GUI)
 BROWSERS = ("chromium", "chromium-browser", "google-chrome")
 FIELD_OF_VIEW = np.radians(75.0)     # meshcat's default camera: vertical field of view (rad)
 FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -97,4 +98,6 @@ def browser_png(robot: Robot, q, png: str | Path, frames: tuple[str, ...] = (), 
     viewer[robot.name].set_transform(tf.translation_matrix(-camera.target))
     viewer["/Cameras/default/rotated/<object>"].set_property("position", [0.0, 0.0, camera.distance])  # y-up frame
     with tempfile.TemporaryDirectory(prefix="rcm-kin-page-") as folder:
-        return screenshot(write_html(viz, Path(folder) / "view.html"), png, size)
+        page = write_html(viz, Path(folder) / "view.html")
+        page.write_text(page.read_text().replace("</style>", HIDE_CONTROLS + "</style>", 1))
+        return screenshot(page, png, size)
