@@ -25,6 +25,8 @@ def cmd_export(args) -> None:
     if not args.mjcf:
         raise RcmKinError("choose what to write: --mjcf FILE")
     robot = load_robot(args.robot)
+    if args.params and robot.name != "psm":
+        raise RcmKinError(f"--params sets the PSM's drives; {robot.name} has none")
     if args.mjcf:
         from rcm_kin.dynamics.drive import load_drive_parameters
         from rcm_kin.export.mjcf import write_mjcf
