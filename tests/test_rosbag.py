@@ -14,7 +14,8 @@ import pytest
 from rcm_kin.cli import main
 from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.rosbag import telemetry_topic
-from rcm_kin.identification.telemetry import load_telemetry
+from rcm_kin.identification.telemetry import load_telemetry, telemetry_files
+from rcm_kin.statics.calibration import calibration_logs
 
 rosbag2 = pytest.importorskip("rosbags.rosbag2")
 from rosbags.typesys import Stores, get_typestore  # noqa: E402
@@ -123,3 +124,15 @@ def test_cli_topic_option_and_one_line_errors(two_topic_bag, tmp_path, capsys):
     assert main(["sysid", str(bad), "--joint", "roll"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1 and "rosbag2" in err
+
+
+def test_folders_list_csv_logs_and_bags(tmp_path):
+    """Folder searches (calibrate, greybox) find CSV logs and bags; a rosbag2 folder counts once."""
+    for name in ("roll-step/a.csv", "roll-step/b.mcap", "roll-step/c.db3", "roll-step/notes.txt",
+                 "roll-step/d/d.mcap", "roll-step/d/metadata.yaml", "roll-step/plain/x.csv", "pitch-prbs/e.db3"):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text("")
+    step = tmp_path / "roll-step"
+    assert telemetry_files(step) == [step / "a.csv", step / "b.mcap", step / "c.db3", step / "d"]
+    assert calibration_logs(tmp_path) == [step / "a.csv", step / "b.mcap", step / "c.db3", step / "d",
+                                          tmp_path / "pitch-prbs" / "e.db3"]
