@@ -19,6 +19,15 @@ def test_psm_mjcf_closes_loops_with_connect_and_drives_with_motors(tmp_path, par
     assert {c.tag for c in root.find("equality")} == {"connect"}          # no joint couplings
     assert [(m.tag, m.get("name"), m.get("joint"), m.get("gear")) for m in root.find("actuator")] == \
         [("motor", j, j, "1") for j in psm.actuated]
+    # the driven motors saturate where the firmware's PWM does: PWM = R tau / (k_t N volts_per_pwm)
+    for motor in root.find("actuator"):
+        if motor.get("name") in ("roll", "pitch", "insertion"):
+            d = params[motor.get("name")]
+            limit = d.pwm_limit * d.torque_constant * d.gear_ratio * d.volts_per_pwm / d.resistance
+            np.testing.assert_allclose(np.array(motor.get("forcerange").split(), dtype=float), [-limit, limit],
+                                       rtol=1e-14)
+        else:
+            assert motor.get("forcerange") is None
     joints = {j.get("name"): j for j in root.iter("joint")}
     assert float(joints["roll"].get("damping")) == params["roll"].viscous
     assert float(joints["pitch"].get("frictionloss")) == params["pitch"].coulomb

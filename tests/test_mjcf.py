@@ -74,10 +74,12 @@ def test_mujoco_kinematics_closes_the_loops_and_places_our_frames(psm_model, key
     psm = load_robot("psm")
     data = at_keyframe(psm_model, key)
     for loop in psm.description.loops:
-        np.testing.assert_allclose(data.site(f"{loop.name}_a").xpos, data.site(f"{loop.name}_b").xpos, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(data.site(f"{loop.name}_a").xpos, data.site(f"{loop.name}_b").xpos,
+                                   rtol=0, atol=1e-12)
     q = actuated_q(psm_model, data, psm)
     for frame in psm.description.frames:
-        np.testing.assert_allclose(data.site(frame).xpos, frame_placement(psm, q, frame).translation, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(data.site(frame).xpos, frame_placement(psm, q, frame).translation,
+                                   rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("key", ["home"] + GRID)

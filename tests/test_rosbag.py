@@ -63,7 +63,8 @@ def measured_bags(shared_data, tmp_path_factory):
     source = shared_data / ROLL_STEP
     messages = {"/psm_joint_telemetry": csv_as_messages(source)}
     folder = tmp_path_factory.mktemp("bags")
-    return source, [write_bag(folder / storage.lower() / source.stem, storage, messages) for storage in ("MCAP", "SQLITE3")]
+    return source, [write_bag(folder / storage.lower() / source.stem, storage, messages)
+                    for storage in ("MCAP", "SQLITE3")]
 
 
 def test_bag_reads_as_the_csv_log(measured_bags):
@@ -96,7 +97,8 @@ def two_topic_bag(tmp_path) -> Path:
     """A small synthetic bag: telemetry on /arm/joints (one message lacks its efforts), an
     unrelated JointState topic, and zero header stamps (time from the recording)."""
     zero = Decimal(0)
-    telemetry = [(10**9 + k * 2_500_000, _joint_state(zero, ["pitch", "roll"], [k, -k], [5 * k, 7], [0, 1] if k != 2 else []))
+    telemetry = [(10**9 + k * 2_500_000,
+                  _joint_state(zero, ["pitch", "roll"], [k, -k], [5 * k, 7], [0, 1] if k != 2 else []))
                  for k in range(5)]
     other = [(10**9, _joint_state(zero, ["j1"], [0.0], [0.0], [0.0]))] * 3
     return write_bag(tmp_path / "bag", "MCAP", {"/arm/joints": telemetry, "/other": other})

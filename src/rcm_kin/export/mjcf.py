@@ -12,7 +12,9 @@ For the PSM the driven joints (roll, pitch, insertion) carry the drive parameter
 express: ``armature`` the reflected drive inertia (kg m^2, kg), ``damping`` the viscous
 coefficient (N m s/rad, N s/m), ``frictionloss`` the Coulomb level (N m, N); the stick-slip
 presliding spring and the tanh smoothing have no MJCF counterpart. One ``motor`` per actuated
-joint, named after it, gear 1: its control is the joint torque (N m) or force (N).
+joint, named after it, gear 1: its control is the joint torque (N m) or force (N); a driven
+joint's motor is limited (``forcerange``) to the torque of the firmware's PWM saturation at rest,
+``PWM_LIMIT / |pwm_per_torque|`` (the back-EMF's loss of torque with speed is not expressible).
 
 Keyframes: ``home`` (every joint at 0 clipped into its range; the PSM insertion at
 :data:`~rcm_kin.hardware.HOME_INSERTION`) and, for the PSM, ``roll{R}_pitch{P}`` over the
@@ -120,12 +122,17 @@ def _geom(obj) -> dict[str, str] | None:
             "contype": "0", "conaffinity": "0", "group": "1", "mass": "0"}
 
 
-def _drive_attributes(robot: Robot, params: DriveParameters | None) -> dict[str, dict[str, str]]:
+def _drive_attributes(robot: Robot, params: DriveParameters | None) -> tuple[dict, dict]:
+    """Joint attributes (armature, damping, frictionloss) and motor attributes (forcerange) of the
+    PSM's driven joints, by joint name; empty for the other robots."""
     if robot.name != "psm":
-        return {}
+        return {}, {}
     params = params if params is not None else load_drive_parameters()
-    return {j: {"armature": _fmt(params[j].reflected_inertia), "damping": _fmt(params[j].viscous),
-                "frictionloss": _fmt(params[j].coulomb)} for j in DRIVEN}
+    joints = {j: {"armature": _fmt(params[j].reflected_inertia), "damping": _fmt(params[j].viscous),
+                  "frictionloss": _fmt(params[j].coulomb)} for j in DRIVEN}
+    saturation = {j: params[j].pwm_limit / abs(params[j].pwm_per_torque) for j in DRIVEN}   # N m, N
+    motors = {j: {"forcerange": _fmt([-saturation[j], saturation[j]])} for j in DRIVEN}
+    return joints, motors
 
 
 def mjcf_tree(robot: Robot, params: DriveParameters | None = None) -> ET.ElementTree:
@@ -139,7 +146,7 @@ def mjcf_tree(robot: Robot, params: DriveParameters | None = None) -> ET.Element
     ET.SubElement(root, "option", timestep=_fmt(TIMESTEP), gravity=_fmt(tree.gravity.linear))
     worldbody = ET.SubElement(root, "worldbody")
     elements = {0: worldbody}
-    drives = _drive_attributes(robot, params)
+    drives, motors = _drive_attributes(robot, params)
     for j in range(1, tree.njoints):
         name = tree.names[j]
         body = ET.SubElement(elements[int(tree.parents[j])], "body", name=bodies.get(j, f"{name}_body"),
@@ -181,7 +188,7 @@ def mjcf_tree(robot: Robot, params: DriveParameters | None = None) -> ET.Element
 
     actuators = ET.SubElement(root, "actuator")
     for name in robot.actuated:
-        ET.SubElement(actuators, "motor", name=name, joint=name, gear="1")
+        ET.SubElement(actuators, "motor", name=name, joint=name, gear="1", **motors.get(name, {}))
     keys = ET.SubElement(root, "keyframe")
     for key in keyframes(robot):
         ET.SubElement(keys, "key", name=key.name, qpos=_fmt(key.q_tree), ctrl=_fmt(key.ctrl))

@@ -77,8 +77,8 @@ def read_joint_states(path: str | Path, topic: str | None = None) -> tuple[np.nd
             connections = [c for c in reader.connections if c.topic == topic]
             if not connections or any(c.msgtype != JOINT_STATE for c in connections):
                 found = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})
-                raise RcmKinError(f"{path}: no {JOINT_STATE} topic {topic} (the bag has: {', '.join(found) or 'none'}); "
-                                  "choose one with --topic")
+                raise RcmKinError(f"{path}: no {JOINT_STATE} topic {topic} (the bag has: "
+                                  f"{', '.join(found) or 'none'}); choose one with --topic")
             for connection, timestamp, raw in reader.messages(connections):
                 msg = typestore.deserialize_cdr(raw, connection.msgtype)
                 rows.append({(name, column): float(values[i])
