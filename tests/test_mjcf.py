@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from rcm_kin.cli import main
 from rcm_kin.dynamics.gravity import gravity_torque
+from rcm_kin.export.mjcf import keyframes
 from rcm_kin.export.mujoco_check import (actuated_q, at_keyframe, closed_chain_swing, drive_terms, hold_speeds,
                                          mujoco_swing)
 from rcm_kin.kinematics.fk import frame_placement
@@ -45,9 +46,11 @@ def test_export_loads_in_mujoco_without_warnings(exported, name, capfd):
     assert model.neq == (len(robot.description.loops) or len(robot.description.passive))
     assert all(model.eq(i).type == (mujoco.mjtEq.mjEQ_CONNECT if robot.description.loops else mujoco.mjtEq.mjEQ_JOINT)
                for i in range(model.neq))
-    # every joint with Pinocchio's limits, every moving body with Pinocchio's mass
+    # every joint with Pinocchio's limits and home position, every moving body with Pinocchio's mass
+    home = at_keyframe(model, "home")
     for j in range(1, robot.tree.njoints):
         i = robot.tree.joints[j].idx_q
+        assert home.qpos[model.joint(robot.tree.names[j]).qposadr[0]] == keyframes(robot)[0].q_tree[i]
         np.testing.assert_array_equal(model.joint(robot.tree.names[j]).range,
                                       [robot.tree.lowerPositionLimit[i], robot.tree.upperPositionLimit[i]])
         if robot.tree.inertias[j].mass > 0:
