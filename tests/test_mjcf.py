@@ -89,7 +89,8 @@ def test_mujoco_kinematics_closes_the_loops_and_places_our_frames(psm_model, key
 def test_motors_holding_our_gravity_torques_keep_the_arm_at_rest(psm_model, key):
     """Controls = our gravity torques (constrained method: loop solve + projection). The arm (roll,
     pitch, insertion and the parallelogram joints) stays under 1e-3 rad/s (m/s) for 0.5 s; without
-    the motors it falls. The instrument is held too at home; elsewhere its 6 g wrist is an unstable
+    the motors it falls (the insertion slides out at about 1 m/s; the exported Coulomb friction
+    holds roll and pitch, and +-30 deg are the pitch limits). The instrument is held too at home; elsewhere its 6 g wrist is an unstable
     equilibrium (growth rate up to 18 /s by our linearisation, e^9 in 0.5 s) that the start-up
     transient of MuJoCo's soft loop constraints tips over, so it is not asserted there."""
     psm = load_robot("psm")
@@ -123,3 +124,16 @@ def test_free_swing_follows_our_dynamics(exported, params):
     model.eq_active0[:] = 0
     open_tree = mujoco_swing(model, at_keyframe(model, "home", np.zeros(psm.nq)), psm, times)
     assert np.max(np.abs(open_tree - ours)[:, psm.actuated.index("pitch")]) > 100 * 1e-4 * travel[1]
+
+
+def test_report_section_tabulates_the_runs(tmp_path):
+    from rcm_kin.report.render import render_section
+    from rcm_kin.report.sections.mujoco import mujoco_section
+
+    section = mujoco_section(tmp_path)
+    assert (tmp_path / section.model).is_file()
+    assert [row[0] for row in section.holding.rows] == ["home"] + GRID
+    assert all(float(row[1]) < 1e-3 for row in section.holding.rows)          # the arm held everywhere
+    differences = np.array([row[1:] for row in section.swing.rows[:-1]], dtype=float)
+    assert np.all(differences < 1e-4 * np.array(section.swing.rows[-1][1:], dtype=float))
+    assert "The PSM in MuJoCo" in render_section(section)
