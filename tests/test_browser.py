@@ -14,8 +14,8 @@ from rcm_kin.cli import main
 from rcm_kin.closure.reduced import tree_configuration
 from rcm_kin.visualization.browser import browser_png, find_browser, side_camera
 
-pytestmark = pytest.mark.skipif(find_browser() is None,
-                                reason="no Chromium on PATH (Debian: apt-get install chromium; .ci/run installs it)")
+needs_browser = pytest.mark.skipif(find_browser() is None, reason="no Chromium on PATH (Debian: apt-get install "
+                                                                  "chromium; .ci/run installs it)")
 
 SIZE = (800, 600)
 
@@ -57,6 +57,7 @@ def shots(psm, tmp_path_factory):
     return camera, {p: browser_png(psm, pose(p), folder / f"pitch{p}.png", size=SIZE, camera=camera) for p in (-20, 20)}
 
 
+@needs_browser
 def test_chromium_draws_the_parallelogram_bars(psm, shots):
     camera, pngs = shots
     scale = camera.pixels_per_metre(SIZE[1])
@@ -70,6 +71,7 @@ def test_chromium_draws_the_parallelogram_bars(psm, shots):
         assert 0.75 * expected < drawn < 1.25 * expected, (pitch, drawn, expected)
 
 
+@needs_browser
 def test_the_picture_follows_the_pose(psm, shots):
     _, pngs = shots
     colour, _ = bar_boxes(psm, pose(0.0))
@@ -79,7 +81,15 @@ def test_the_picture_follows_the_pose(psm, shots):
     assert np.nonzero(high)[1].mean() > np.nonzero(low)[1].mean()
 
 
+@needs_browser
 def test_view_cli_browser_renderer(tmp_path, capsys):
     assert main(["view", "mtm", "--q", "0.3", "0.2", "--png", str(tmp_path / "m.png"), "--renderer", "browser"]) == 0
     image = imread(tmp_path / "m.png")
     assert image.shape[:2] == (SIZE[1], SIZE[0]) and (image[..., :3] < 0.9).any()
+
+
+def test_without_a_browser_the_renderer_says_what_to_install(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("PATH", str(tmp_path))          # no browser on it
+    assert main(["view", "psm", "--png", str(tmp_path / "p.png"), "--renderer", "browser"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: no Chromium") and "apt-get install chromium" in err and err.count("\n") == 1
