@@ -29,7 +29,7 @@ from rcm_kin.errors import RcmKinError
 DEFAULT_TOPIC = "/psm_joint_telemetry"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 BAG_SUFFIXES = (".mcap", ".db3")
-FIELDS = {"position": "position", "velocity": "velocity", "effort": "effort"}   # JointState field -> CSV column
+FIELDS = ("position", "velocity", "effort")   # JointState arrays, named as the CSV columns
 _TOPIC: ContextVar[str] = ContextVar("telemetry_topic", default=DEFAULT_TOPIC)
 
 
@@ -81,8 +81,8 @@ def read_joint_states(path: str | Path, topic: str | None = None) -> tuple[np.nd
                                   f"{', '.join(found) or 'none'}); choose one with --topic")
             for connection, timestamp, raw in reader.messages(connections):
                 msg = typestore.deserialize_cdr(raw, connection.msgtype)
-                rows.append({(name, column): float(values[i])
-                             for field, column in FIELDS.items() if len(values := getattr(msg, field)) == len(msg.name)
+                rows.append({(name, field): float(values[i])
+                             for field in FIELDS if len(values := getattr(msg, field)) == len(msg.name)
                              for i, name in enumerate(msg.name)})
                 stamps.append(f"{msg.header.stamp.sec}.{msg.header.stamp.nanosec:09d}")
                 received.append(timestamp)
@@ -91,7 +91,8 @@ def read_joint_states(path: str | Path, topic: str | None = None) -> tuple[np.nd
     except (ReaderError, OSError, KeyError, ValueError) as exc:
         if isinstance(exc, RcmKinError):
             raise
-        raise RcmKinError(f"{path}: not a readable rosbag2 bag ({exc})") from None
+        first_line = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise RcmKinError(f"{path}: not a readable rosbag2 bag ({first_line})") from None
     return _columns(path, rows, stamps, received)
 
 
@@ -100,6 +101,8 @@ def _columns(path: Path, rows: list[dict], stamps: list[str], received: list[int
         raise RcmKinError(f"{path}: not a telemetry log (fewer than 2 messages on the topic)")
     keys = sorted(set().union(*rows))
     complete = [all(k in row for k in keys) for row in rows]
+    if sum(complete) < 2:
+        raise RcmKinError(f"{path}: not a telemetry log (fewer than 2 messages with every field of every joint)")
     data = {k: np.array([row[k] for row, ok in zip(rows, complete) if ok]) for k in keys}
     # the stamp as the decimal number of seconds it is (as the CSV export writes it)
     t = np.array([float(s) for s, ok in zip(stamps, complete) if ok])
