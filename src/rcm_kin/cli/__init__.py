@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import sys
 
-from rcm_kin.cli import control, drive_train, identification, kinematics, safety, simulation, statics, views
+from rcm_kin.cli import control, drive_train, export, identification, kinematics, safety, simulation, statics, views
 from rcm_kin.cli.common import RAW, Parser
 from rcm_kin.errors import RcmKinError
+from rcm_kin.identification.rosbag import DEFAULT_TOPIC, telemetry_topic
 
 # in the order of ``rcm-kin --help``
 COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
@@ -19,7 +20,9 @@ COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
             control.add_dynamics, control.add_linearize, control.add_schedule,
             simulation.add_simulate, identification.add_sysid, identification.add_greybox,
             drive_train.add_identify, drive_train.add_predict, drive_train.add_excite,
-            views.add_view, safety.add_safety, views.add_report)
+            views.add_view, safety.add_safety, views.add_report, export.add_export)
+# the commands that read telemetry logs: CSV, or ROS 2 bags whose JointState topic --topic names
+LOG_COMMANDS = ("calibrate", "sysid", "greybox", "identify", "predict", "report")
 
 
 def build_parser() -> Parser:
@@ -34,6 +37,9 @@ def build_parser() -> Parser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for add in COMMANDS:
         add(sub)
+    for name in LOG_COMMANDS:
+        sub.choices[name].add_argument("--topic", default=DEFAULT_TOPIC,
+                                       help=f"telemetry topic of ROS 2 bag logs (.mcap, .db3; default {DEFAULT_TOPIC})")
     return parser
 
 
@@ -41,7 +47,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command; 0 on success, 2 on a user error, 130 on Ctrl-C."""
     args = build_parser().parse_args(argv)
     try:
-        args.func(args)
+        with telemetry_topic(getattr(args, "topic", None)):
+            args.func(args)
     except RcmKinError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

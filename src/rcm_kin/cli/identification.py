@@ -104,12 +104,14 @@ def _sysid_log(args, model, options: dict) -> None:
 def cmd_greybox(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.identification.greybox import fit_greybox, step_logs, write_greybox_parameters
+    from rcm_kin.identification.rosbag import is_bag
+    from rcm_kin.identification.telemetry import telemetry_files
 
     paths = []
     for item in args.logs:
-        found = sorted(Path(item).glob("*.csv")) if Path(item).is_dir() else [Path(item)]
+        found = telemetry_files(item) if Path(item).is_dir() and not is_bag(item) else [Path(item)]
         if not found:
-            raise RcmKinError(f"no *.csv logs in {item}")
+            raise RcmKinError(f"no logs (CSV or ROS 2 bags) in {item}")
         paths += found
     if args.samples < 50:
         raise RcmKinError("--samples needs at least 50 samples after the step")

@@ -7,7 +7,8 @@ from rcm_kin.robot import load_robot
 
 EPILOG_VIEW = ("examples: rcm-kin view psm --q 10 -5 0.08 --deg --html psm.html   (self-contained page)\n"
                "          rcm-kin view mtm --frames wrist_center tool_tip   (serves on localhost, prints the URL)\n"
-               "          rcm-kin view psm --q 10 -5 0.08 --deg --png psm.png   (matplotlib drawing)")
+               "          rcm-kin view psm --q 10 -5 0.08 --deg --png psm.png   (matplotlib drawing)\n"
+               "          rcm-kin view psm --q 10 -5 0.08 --deg --png psm.png --renderer browser   (Chromium)")
 EPILOG_REPORT = ("examples: rcm-kin report --out report   (then open report/index.html)\n"
                  "          rcm-kin report --out report --data ../shared/data   (with the measured logs)")
 
@@ -20,7 +21,9 @@ def add_view(sub) -> None:
     p.add_argument("--deg", action="store_true", help="revolute values in degrees (prismatic stay in m)")
     p.add_argument("--frames", nargs="*", metavar="FRAME", help="frames to show as axis triads (e.g. rcm tool_tip)")
     p.add_argument("--html", metavar="FILE", help="write a self-contained page instead of serving")
-    p.add_argument("--png", metavar="FILE", help="write a matplotlib drawing instead of serving")
+    p.add_argument("--png", metavar="FILE", help="write a picture instead of serving (see --renderer)")
+    p.add_argument("--renderer", choices=("matplotlib", "browser"), default="matplotlib",
+                   help="--png: a matplotlib drawing (default), or the meshcat page as headless Chromium draws it")
     p.set_defaults(func=cmd_view)
 
 
@@ -42,7 +45,11 @@ def cmd_view(args) -> None:
     robot = load_robot(args.robot)
     q = joint_values(robot, args)
     frames = tuple(args.frames or ())
-    if args.png:
+    if args.png and args.renderer == "browser":
+        from rcm_kin.visualization.browser import browser_png
+
+        print(f"wrote {browser_png(robot, q, args.png, frames)}")
+    elif args.png:
         from rcm_kin.visualization.drawing import robot_drawing
 
         print(f"wrote {robot_drawing(robot, q, args.png, title=robot.name.upper())}")

@@ -3,7 +3,8 @@
 Column meaning (per joint ``roll``, ``pitch``, ``insertion``): ``.../<joint>/position`` (or
 ``<joint>_position``) is the measured position in degrees; ``.../<joint>/velocity`` is the
 commanded motor PWM (the input, counts); ``.../<joint>/effort`` the position setpoint (deg).
-Time is the microcontroller stamp when present, else ``__time``/``time`` (s).
+Time is the microcontroller stamp when present, else ``__time``/``time`` (s). ROS 2 bags of the
+same telemetry (``.mcap``, ``.db3``) are read by :mod:`rcm_kin.identification.rosbag`.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from rcm_kin.errors import RcmKinError
+from rcm_kin.identification.rosbag import BAG_SUFFIXES, is_bag, load_bag
 
 JOINTS = ("roll", "pitch", "insertion")
 _TIME_COLUMNS = ("/psm_joint_telemetry/header/stamp", "__time", "time")
@@ -44,8 +46,10 @@ def _find(header: list[str], joint: str, quantity: str) -> int | None:
 
 
 def load_telemetry(path: str | Path) -> TelemetryLog:
-    """Read one telemetry CSV; rows with missing values are dropped."""
+    """Read one telemetry CSV (or ROS 2 bag); rows with missing values are dropped."""
     path = Path(path)
+    if is_bag(path):
+        return load_bag(path)
     try:
         with path.open(newline="") as fh:
             rows = list(csv.reader(fh))
@@ -76,6 +80,14 @@ def load_telemetry(path: str | Path) -> TelemetryLog:
         raise RcmKinError(f"{path}: not a telemetry log (no '<joint>/position' and '<joint>/velocity' columns)")
     t = data[:, time_col]
     return TelemetryLog(path, t - t[0], position, pwm, pick("effort"))
+
+
+def telemetry_files(folder: str | Path, pattern: str = "*") -> list[Path]:
+    """The logs below ``folder`` whose names match ``pattern`` (a glob without the suffix), sorted:
+    CSV files and ROS 2 bags (``.mcap``/``.db3`` files; a rosbag2 folder counts once, as the folder)."""
+    found = Path(folder).glob(pattern)
+    return sorted(p for p in found if (p.is_dir() and is_bag(p))
+                  or (p.suffix in (".csv", *BAG_SUFFIXES) and p.is_file() and not is_bag(p.parent)))
 
 
 def step_index(u: np.ndarray, threshold: float = 0.1) -> int:

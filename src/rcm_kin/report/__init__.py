@@ -32,6 +32,7 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     from rcm_kin.report.sections.linear_models import linear_models_section
     from rcm_kin.report.sections.measured import measured_section
     from rcm_kin.report.sections.models import models_section
+    from rcm_kin.report.sections.mujoco import mujoco_section
     from rcm_kin.report.sections.robots import robots_section
     from rcm_kin.report.sections.safety import safety_section
     from rcm_kin.report.sections.schedule import schedule_section
@@ -42,7 +43,7 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     if data is not None and not Path(data).is_dir():
         raise RcmKinError(f"no data folder at {data}")
     out = output_folder(out)
-    with tqdm(total=8 if data is None else 9, desc="report", unit="step", disable=not progress) as bar:
+    with tqdm(total=9 if data is None else 10, desc="report", unit="step", disable=not progress) as bar:
         def step(name: str) -> None:
             bar.set_postfix_str(name)
             bar.update()
@@ -61,6 +62,8 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
         step("tracking experiments")
         sections = [robots, models, gravity, linear, schedule, tracking, safety_section(out)]
         step("safety")
+        sections += [s for s in [mujoco_section(out)] if s is not None]   # with the [mujoco] extra
+        step("MuJoCo")
         if data is not None:
             sections.append(measured_section(out, Path(data)))
             identified = drive_train_section(out, Path(data))

@@ -36,7 +36,7 @@ from rcm_kin.dynamics.drive import DriveParameters, drive_effort, with_joint
 from rcm_kin.dynamics.gravity import gravity_batch
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION
-from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry, step_index
+from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry, step_index, telemetry_files
 
 if TYPE_CHECKING:
     from rcm_kin.robot import Robot
@@ -145,7 +145,7 @@ def calibrate(robot: Robot, base: DriveParameters, points) -> CalibrationResult:
 def calibration_logs(folder: str | Path) -> list[Path]:
     """The roll step and pitch PRBS logs below a data folder (``psm-sysid`` layout)."""
     folder = Path(folder)
-    logs = sorted(folder.glob("**/roll-step/*.csv")) + sorted(folder.glob("**/pitch-prbs/*.csv"))
+    logs = telemetry_files(folder, "**/roll-step/*") + telemetry_files(folder, "**/pitch-prbs/*")
     if not logs:
-        raise RcmKinError(f"no roll-step/*.csv or pitch-prbs/*.csv logs below {folder}")
+        raise RcmKinError(f"no roll-step/ or pitch-prbs/ logs (CSV or ROS 2 bags) below {folder}")
     return logs

@@ -1,0 +1,1 @@
+"""Writers of the robot models in other tools' formats."""
