@@ -138,3 +138,16 @@ def test_folders_list_csv_logs_and_bags(tmp_path):
     assert telemetry_files(step) == [step / "a.csv", step / "b.mcap", step / "c.db3", step / "d"]
     assert calibration_logs(tmp_path) == [step / "a.csv", step / "b.mcap", step / "c.db3", step / "d",
                                           tmp_path / "pitch-prbs" / "e.db3"]
+
+
+def test_identification_folders_find_bags(measured_bags, capsys):
+    """A folder of bags is searched like a folder of CSV logs by the identification's catalogue
+    and by ``sysid FOLDER`` (the pose models), with the same results as the CSV log."""
+    from rcm_kin.identification.log_catalog import catalog
+
+    source, bags = measured_bags
+    for bag in bags:                     # each bag is a rosbag2 folder (metadata + storage file)
+        entries = catalog([bag.parent.parent], ("roll",))
+        assert [(e.path, e.kind) for e in entries] == [(bag.parent, "step")]
+    folder_fit = _sysid_json(bags[0].parent.parent, capsys)
+    assert folder_fit["models"][0]["fit_percent"] == _sysid_json(source, capsys)["fit_percent"]

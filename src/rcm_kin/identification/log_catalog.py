@@ -29,7 +29,7 @@ import numpy as np
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import PWM_LIMIT
 from rcm_kin.identification.recorded_law import recover_law
-from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry
+from rcm_kin.identification.telemetry import TelemetryLog, is_bag, load_telemetry, telemetry_files
 
 HOLD = 0.5            # s a step's PWM must hold before and after its one change
 ANGLE_RANGE = 90.0    # deg: an angle column beyond this is not in degrees
@@ -73,17 +73,17 @@ def classify(log: TelemetryLog, joint: str) -> tuple[str, str]:
 
 
 def catalog(paths, joints=("roll", "pitch")) -> list[CatalogEntry]:
-    """Every CSV log in ``paths`` (files or folders, searched recursively) for each joint."""
+    """Every log in ``paths`` (files or folders searched recursively: CSV and ROS 2 bags) for each joint."""
     files = []
     for path in map(Path, paths):
-        if path.is_dir():
-            files += sorted(path.glob("**/*.csv"))
-        elif path.is_file():
+        if path.is_dir() and not is_bag(path):
+            files += telemetry_files(path, "**/*")
+        elif path.exists():
             files.append(path)
         else:
             raise RcmKinError(f"no log file or folder at {path}")
     if not files:
-        raise RcmKinError(f"no CSV logs in {', '.join(map(str, paths))}")
+        raise RcmKinError(f"no telemetry logs (CSV, .mcap, .db3) in {', '.join(map(str, paths))}")
     out = []
     for file in files:
         try:

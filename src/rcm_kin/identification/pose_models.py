@@ -21,7 +21,7 @@ from rcm_kin.dynamics.state_space import DrivenDynamics
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.identification.records import Record, operating_point, prbs_record, step_record
-from rcm_kin.identification.telemetry import load_telemetry
+from rcm_kin.identification.telemetry import load_telemetry, telemetry_files
 from rcm_kin.identification.transfer_function import TransferFunctionFit, dc_gain, fit_transfer_function
 
 AXIS = {"roll": 0, "pitch": 1}
@@ -97,8 +97,8 @@ def identify_log(path, joint: str, method: str | None = None, order: int | None 
 
 
 def identify_folder(folder, joint: str, model: DrivenDynamics | None = None, **options) -> list[PoseModel]:
-    """:func:`identify_log` on every ``*.csv`` of ``folder`` whose name carries a pose, sorted."""
-    paths = sorted(p for p in Path(folder).glob("*.csv") if operating_point(p) is not None)
+    """:func:`identify_log` on every log of ``folder`` (CSV or ROS 2 bag) whose name carries a pose, sorted."""
+    paths = [p for p in telemetry_files(folder) if operating_point(p) is not None]
     if not paths:
         raise RcmKinError(f"no logs named like '..._roll_R_pitch_P.csv' in {folder}")
     return [identify_log(p, joint, model=model, **options) for p in paths]
