@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 
-from rcm_kin.cli import control, drive_train, identification, kinematics, safety, simulation, statics, views
+from rcm_kin.cli import control, drive_train, export, identification, kinematics, safety, simulation, statics, views
 from rcm_kin.cli.common import RAW, Parser
 from rcm_kin.errors import RcmKinError
 
@@ -19,7 +19,7 @@ COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
             control.add_dynamics, control.add_linearize, control.add_schedule,
             simulation.add_simulate, identification.add_sysid, identification.add_greybox,
             drive_train.add_identify, drive_train.add_predict, drive_train.add_excite,
-            views.add_view, safety.add_safety, views.add_report)
+            views.add_view, safety.add_safety, views.add_report, export.add_export)
 
 
 def build_parser() -> Parser:
