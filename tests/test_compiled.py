@@ -109,3 +109,29 @@ def test_single_call_dense_matrix_layout():
     f = ca.Function("f", [x], [ca.vertcat(ca.horzcat(x[0], 2 * x[1], 3.0), ca.horzcat(x[1], x[0] * x[1], 5.0))])
     (out,) = comp.single_call(f)(np.array([2.0, 7.0]))
     np.testing.assert_array_equal(out, [[2.0, 14.0, 3.0], [7.0, 14.0, 5.0]])
+
+
+@pytest.mark.parametrize("build", [False, True])
+def test_map_points_matches_point_calls(cache, model, build):
+    """Chunks of 7 over 20 points (a remainder chunk), sparse (A, B) filled densely."""
+    X, U = random_states(model, 20, 2)
+    fn = comp.compiled(model.jacobians) if build else model.jacobians
+    A, B = comp.map_points(fn, X, U, chunk=7)
+    assert A.shape == (20, 6, 6) and B.shape == (20, 6, 3)
+    (g,) = comp.map_points(comp.compiled(model.gravity) if build else model.gravity, X[:, :3], chunk=7)
+    assert g.shape == (20, 3)
+    for k, (x, u) in enumerate(zip(X, U)):
+        a, b = model.jacobians(x, u)
+        np.testing.assert_allclose(A[k], np.array(a), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(B[k], np.array(b), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(g[k], np.array(model.gravity(x[:3])).ravel(), rtol=1e-12, atol=1e-12)
+    with pytest.raises(RcmKinError, match="needs 6 dense values"):
+        comp.map_points(fn, X[:, :3], U)
+
+
+def test_map_points_matrix_and_scalar_outputs():
+    x = ca.SX.sym("x", 2)
+    f = ca.Function("f", [x], [ca.horzcat(x, 2 * x), x[0] * x[1]])
+    M, s = comp.map_points(f, np.array([[1.0, 2.0], [3.0, 4.0]]))
+    np.testing.assert_array_equal(M, [[[1, 2], [2, 4]], [[3, 6], [4, 8]]])
+    np.testing.assert_array_equal(s, [2.0, 12.0])

@@ -7,7 +7,9 @@ named by a SHA-256 of the function's serialisation, the CasADi version and the c
 so a changed model, CasADi or compiler builds anew and an unchanged one loads in milliseconds.
 The compiled function evaluates the same expression graph: results agree with the interpreted
 function to rounding (the tests hold them to 1e-12). Mapping a compiled function
-(``compiled(f).map(n)``) keeps the loop in C.
+(``compiled(f).map(n)``) keeps the loop in C; :func:`map_points` evaluates many points through
+bound buffers, without CasADi matrices in between. Before generating C, an SX function's common
+subexpressions are merged (``casadi.cse``: the same operations on the same values, fewer of them).
 
 Without a C compiler the interpreted function is returned and one line on stderr says so (once
 per compiler setting and process). :func:`single_call` evaluates one point through CasADi's
@@ -95,7 +97,7 @@ def _build(fn: ca.Function, command: list[str]) -> Path:
     with tempfile.TemporaryDirectory(dir=folder) as work:
         source = Path(work) / f"{fn.name()}.c"
         generator = ca.CodeGenerator(source.name, {"with_header": False})
-        generator.add(fn)
+        generator.add(_merged(fn))
         source.write_text(generator.dump())
         target = Path(work) / library.name
         run = subprocess.run([*command, *COMPILE_FLAGS, str(source), "-o", str(target), "-lm"],
@@ -105,6 +107,56 @@ def _build(fn: ca.Function, command: list[str]) -> Path:
             raise RcmKinError(f"compiling {fn.name()} with {command[0]} failed: {first}")
         target.replace(library)
     return library
+
+
+def _merged(fn: ca.Function) -> ca.Function:
+    """An SX function with its common subexpressions merged (``casadi.cse``): the same operations
+    on the same values, fewer of them; other functions unchanged."""
+    if not fn.is_a("SXFunction"):
+        return fn
+    args = fn.sx_in()
+    return ca.Function(fn.name(), args, ca.cse(fn.call(args)), fn.name_in(), fn.name_out())
+
+
+def map_points(fn: ca.Function, *args: np.ndarray, chunk: int = 16384) -> tuple[np.ndarray, ...]:
+    """``fn`` at N points, ``fn.map`` over chunks of ``chunk`` points through bound buffers (no
+    CasADi matrices in between, memory bounded by the chunk and the outputs).
+
+    ``args``: arrays (N, nnz_in_i), one row per point (dense inputs). Returns one array per output:
+    (N,) for a scalar output, (N, rows) for a column vector, (N, rows, cols) otherwise
+    (structural zeros filled)."""
+    n = len(args[0])
+    rows = [np.ascontiguousarray(np.asarray(a, dtype=float).reshape(n, -1)) for a in args]
+    for i, a in enumerate(rows):
+        if a.shape[1] != fn.nnz_in(i) or not fn.sparsity_in(i).is_dense():
+            raise RcmKinError(f"{fn.name()}: input {i} needs {fn.nnz_in(i)} dense values per point")
+    nonzeros = [np.empty((n, fn.nnz_out(i))) for i in range(fn.n_out())]
+    mapped = {}
+    for start in range(0, n, chunk):
+        stop = min(start + chunk, n)
+        if stop - start not in mapped:
+            mapped[stop - start] = fn.map(stop - start).buffer()
+        buffer, trigger = mapped[stop - start]
+        views = [a[start:stop] for a in rows] + [nz[start:stop] for nz in nonzeros]
+        for i, v in enumerate(views[:len(rows)]):
+            buffer.set_arg(i, memoryview(v))
+        for i, v in enumerate(views[len(rows):]):
+            buffer.set_res(i, memoryview(v))
+        trigger()
+    return tuple(_points_layout(fn.sparsity_out(i), nz) for i, nz in enumerate(nonzeros))
+
+
+def _points_layout(sparsity: ca.Sparsity, nz: np.ndarray) -> np.ndarray:
+    """(N, nnz) nonzeros per point -> (N,), (N, rows) or (N, rows, cols) dense."""
+    rows, cols = sparsity.size1(), sparsity.size2()
+    if sparsity.is_dense():
+        if cols == 1:
+            return nz[:, 0] if rows == 1 else nz
+        return nz.reshape(len(nz), cols, rows).transpose(0, 2, 1)
+    r, c = (np.array(x, dtype=int) for x in sparsity.get_triplet())
+    out = np.zeros((len(nz), rows, cols))
+    out[:, r, c] = nz
+    return out[:, :, 0] if cols == 1 else out
 
 
 def single_call(fn: ca.Function) -> Callable[..., tuple[np.ndarray, ...]]:
