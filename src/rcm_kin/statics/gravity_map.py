@@ -9,10 +9,12 @@ torques N m (insertion N), voltage V, PWM counts with the hardware sign.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import casadi as ca
 import numpy as np
 from tqdm import tqdm
 
@@ -101,12 +103,13 @@ def driven_gravity(robot: Robot, drive: DriveParameters, Q: np.ndarray, progress
                    block: int = 1 << 16) -> np.ndarray:
     """Holding torques (N, 3) of the driven joints at (N, 3) poses (rad, rad, m; the instrument
     joints at zero), calibrated offsets included: the driven model's gravity
-    (:mod:`rcm_kin.dynamics.state_space`, the numbers of :func:`gravity_batch`) compiled to C and
+    (:func:`rcm_kin.dynamics.state_space.driven_gravity_function`, the numbers of
+    :func:`gravity_batch`) compiled to C and
     mapped over the poses; ``progress`` shows a bar over blocks of ``block`` poses."""
-    from rcm_kin.dynamics.state_space import driven_dynamics
-    from rcm_kin.symbolic.compiled import compiled, map_points
+    from rcm_kin.symbolic.compiled import map_points
 
-    gravity = compiled(driven_dynamics(robot, drive, coulomb=False).gravity)
+    offsets = tuple((link, tuple(float(x) for x in h)) for link, h in sorted(drive.gravity_offsets.items()))
+    gravity = _compiled_gravity(robot, offsets)
     starts = range(0, len(Q), block)
     if progress and len(starts) > 1:
         starts = tqdm(starts, desc="gravity", unit="block")
@@ -114,6 +117,16 @@ def driven_gravity(robot: Robot, drive: DriveParameters, Q: np.ndarray, progress
     for i in starts:
         tau[i:i + block] = map_points(gravity, Q[i:i + block])[0]
     return tau
+
+
+@functools.lru_cache(maxsize=8)
+def _compiled_gravity(robot: Robot, offsets: tuple) -> ca.Function:
+    """The driven gravity with first moments ``offsets`` ((link, (hx, hy, hz)), ...), compiled:
+    built once per robot and offsets in a process (and on disk by :mod:`rcm_kin.symbolic.compiled`)."""
+    from rcm_kin.dynamics.state_space import driven_gravity_function
+    from rcm_kin.symbolic.compiled import compiled
+
+    return compiled(driven_gravity_function(robot, {link: np.array(h) for link, h in offsets}))
 
 
 def write_csv(gmap: GravityMap, path: str | Path, block: int = 1 << 14) -> Path:
