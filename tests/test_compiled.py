@@ -91,6 +91,15 @@ def test_no_compiler_falls_back_with_one_line(cache, model, capsys, tmp_path, mo
     assert not cache.exists()
 
 
+def test_unwritable_cache_falls_back_with_one_line(model, monkeypatch, tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))           # the cache would have to live in a file
+    assert comp.compiled(model.gravity) is model.gravity
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("warning: cannot write the compiled-function cache")
+
+
 def test_compiler_failure_is_an_error(cache, model, monkeypatch):
     monkeypatch.setenv("CC", "false")
     with pytest.raises(RcmKinError, match="compiling gravity with false failed"):

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import casadi as ca
-import control
 import numpy as np
 import pinocchio as pin
 from scipy.linalg import expm
@@ -30,6 +29,8 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.symbolic.compiled import compiled, map_points
 
 if TYPE_CHECKING:
+    import control
+
     from rcm_kin.robot import Robot
 
 
@@ -54,6 +55,8 @@ class Linearization:
         """The model as a python-control ``StateSpace`` in the deviations from ``(x0, u0)``, with
         labelled signals: states ``roll [rad]`` .. ``insertion rate [m/s]``, inputs
         ``roll PWM [counts]`` .., outputs the joint positions ``roll [rad]`` .. ``insertion [m]``."""
+        import control   # python-control costs ~120 MB and a second to import: only when asked for
+
         positions = [f"{j} [{DRIVEN_UNIT[j]}]" for j in DRIVEN]
         rates = [f"{j} rate [{DRIVEN_UNIT[j]}/s]" for j in DRIVEN]
         return control.ss(self.A, self.B, self.C, self.D, states=positions + rates,

@@ -63,18 +63,29 @@ def _available(compiler: str) -> bool:
     """Whether ``compiler`` runs; if not, say once on stderr that functions run interpreted."""
     if shutil.which(compiler) is not None:
         return True
-    print(f"warning: no C compiler '{compiler}' found (set CC): CasADi functions run interpreted, slower",
-          file=sys.stderr)
+    _warn(f"no C compiler '{compiler}' found (set CC)")
     return False
+
+
+@functools.cache
+def _warn(reason: str) -> None:
+    """One line on stderr (once per reason and process): functions run interpreted."""
+    print(f"warning: {reason}: CasADi functions run interpreted, slower", file=sys.stderr)
 
 
 def compiled(fn: ca.Function) -> ca.Function:
     """``fn`` compiled to C and loaded (from the cache when built before), or ``fn`` itself when
-    no C compiler is found. Raises :class:`RcmKinError` when the compiler fails on the code."""
+    no C compiler is found or the cache folder cannot be written (one line on stderr). Raises
+    :class:`RcmKinError` when the compiler fails on the code."""
     command = compiler_command()
     if not command or not _available(command[0]):
         return fn
-    return _load(fn.name(), _build(fn, command))
+    try:
+        library = _build(fn, command)
+    except OSError as exc:
+        _warn(f"cannot write the compiled-function cache {cache_folder()} ({exc.strerror})")
+        return fn
+    return _load(fn.name(), library)
 
 
 @functools.lru_cache(maxsize=64)
@@ -90,10 +101,7 @@ def _build(fn: ca.Function, command: list[str]) -> Path:
     library = folder / f"{fn.name()}_{key[:32]}.so"
     if library.exists():
         return library
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise RcmKinError(f"cannot create the compiled-function cache {folder}: {exc.strerror}") from None
+    folder.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=folder) as work:
         source = Path(work) / f"{fn.name()}.c"
         generator = ca.CodeGenerator(source.name, {"with_header": False})
