@@ -13,8 +13,10 @@ quantisation, firmware velocity estimate), and the cost of one plant period, sam
   for scale ``pin.aba`` on the open tree (no loop closure: a cost floor, not the same physics).
 
     python benchmarks/bench_simulation.py
-Target: at least 10 simulated seconds per wall-clock second for every controller, so the
-report's experiments and a parameter sweep stay interactive on 2 cores.
+Targets: at least 10 simulated seconds per wall-clock second for every controller (the report's
+experiments and a parameter sweep stay interactive on 2 cores); issue 16: 200 on the fast path
+(:mod:`rcm_kin.simulation.fast_path`: compiled plant functions, stacked gain tables), measured
+here next to the readable reference classes.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from rcm_kin.dynamics.state_space import drive_constants, driven_dynamics  # noq
 from rcm_kin.hardware import FIRMWARE_PERIOD, PWM_LIMIT  # noqa: E402
 from rcm_kin.simulation.controllers import CONTROLLERS, Sample, make_controller  # noqa: E402
 from rcm_kin.simulation.experiments import psm_plant_and_schedule, run_experiment  # noqa: E402
+from rcm_kin.simulation.fast_path import compiled_period_map, fast_controller  # noqa: E402
 from rcm_kin.simulation.plant import period_map  # noqa: E402
 
 SUBSTEPS = 4
@@ -110,21 +113,30 @@ def main() -> None:
     print("ratio to the shipped plant's period: " + ", ".join(
         f"{label} {seconds / shipped:.2f}" for label, (_, seconds) in zip(("smooth RK4", "Pinocchio", "open-tree ABA"),
                                                                           rows[1:4])))
+    fast_plant_, _ = psm_plant_and_schedule(fast=True)
+    fast_smooth = compiled_period_map(smooth)
+    fast_scheduled = fast_controller(scheduled)
+    report([("fast path: drive-train plant period (compiled M/bias)", per_call(lambda: fast_plant_.step(x, u), 2000)),
+            ("fast path: smooth period_map compiled, buffered call", per_call(lambda: fast_smooth(xs, u), 2000)),
+            ("fast path: scheduled-gravity tick on stacked tables",
+             per_call(lambda: fast_scheduled.command(memory, sample), 2000))])
     duration = 6.0
-    print(f"\nclosed loop, sine {duration:g} s + 1 s settling: wall s (best of 3), simulated s per wall s "
-          "(target >= 10)")
-    print(f"{'controller':18}  {'drive-train plant':>22}  {'smooth RK4 plant':>22}")
+    print(f"\nclosed loop, sine {duration:g} s + 1 s settling: simulated s per wall s (best of 2), fast path and "
+          "reference classes (target >= 200 for the fast path)")
+    print(f"{'controller':18}  {'drive-train fast':>16}  {'reference':>10}  {'smooth fast':>12}  {'reference':>10}")
     for name in CONTROLLERS:
         cells = []
         for p in (None, smooth_params):
-            run_experiment("sine", name, duration=1.0, params=p)              # warm-up (builds the plant)
-            best = float("inf")
-            for _ in range(3):
-                start = time.perf_counter()
-                run_experiment("sine", name, duration=duration, params=p)
-                best = min(best, time.perf_counter() - start)
-            cells.append(f"{best:6.3f} s {(duration + 1.0) / best:6.1f} x")
-        print(f"{name:18}  {cells[0]:>22}  {cells[1]:>22}")
+            for fast in (True, False):
+                run_experiment("sine", name, duration=1.0, params=p, fast=fast)     # warm-up (builds the plant)
+                best = float("inf")
+                for _ in range(2):
+                    start = time.perf_counter()
+                    run_experiment("sine", name, duration=duration, params=p, fast=fast)
+                    best = min(best, time.perf_counter() - start)
+                cells.append((duration + 1.0) / best)
+        print(f"{name:18}  {cells[0]:14.1f} x  {cells[1]:8.1f} x  {cells[2]:10.1f} x  {cells[3]:8.1f} x")
+
 
 if __name__ == "__main__":
     main()

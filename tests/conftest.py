@@ -12,6 +12,15 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 
+@pytest.fixture(scope="session", autouse=True)
+def compiled_cache(tmp_path_factory) -> Path:
+    """Compiled CasADi functions go to a fresh folder: every run starts from an empty cache,
+    as CI does, and never touches the user's ``~/.cache``."""
+    folder = tmp_path_factory.mktemp("xdg_cache")
+    os.environ["XDG_CACHE_HOME"] = str(folder)
+    return folder
+
+
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """The measured PSM logs beside the project (reference material, never committed)."""

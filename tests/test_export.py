@@ -46,7 +46,7 @@ def test_davinci_mimic_parallelogram_becomes_joint_equalities(tmp_path):
 
 def test_export_errors_are_one_line(tmp_path, capsys):
     assert main(["export", "psm"]) == 2
-    assert capsys.readouterr().err == "error: choose what to write: --mjcf FILE\n"
+    assert capsys.readouterr().err == "error: choose what to write: --mjcf FILE and/or --c DIR\n"
     assert main(["export", "mtm", "--mjcf", str(tmp_path / "m.xml"), "--params", "x.toml"]) == 2
     assert main(["export", "psm", "--mjcf", str(tmp_path / "no" / "p.xml")]) == 2
     assert main(["export", "nobot", "--mjcf", str(tmp_path / "p.xml")]) == 2

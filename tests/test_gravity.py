@@ -263,3 +263,21 @@ def test_not_a_telemetry_log(tmp_path, capsys):
     assert main(["calibrate", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error:") and "roll/position" in err and err.count("\n") == 1
+
+
+def test_compiled_map_equals_numpy_gravity_and_blockwise_drive(psm, params):
+    """The map's compiled driven gravity against the NumPy batch (independent code) at 1e-12,
+    and the drive model in blocks against one call."""
+    from rcm_kin.statics.gravity_map import drive_effort_blocks, driven_gravity
+
+    rng = np.random.default_rng(3)
+    i = [psm.actuated.index(j) for j in ("roll", "pitch", "insertion")]
+    Q = rng.uniform(psm.lower[i], psm.upper[i], (50, 3))
+    Q7 = np.zeros((50, psm.nq))
+    Q7[:, :3] = Q
+    expect = gravity_batch(psm, Q7, params.gravity_offsets)[:, :3]
+    np.testing.assert_allclose(driven_gravity(psm, params, Q, block=16), expect, rtol=0, atol=1e-12)
+    tau = expect.reshape(5, 10, 1, 3)
+    blocks, whole = drive_effort_blocks(params, tau, block=7), drive_effort(params, tau)
+    for name in ("tau", "motor_torque", "current", "voltage", "pwm", "saturated"):
+        np.testing.assert_array_equal(getattr(blocks, name), getattr(whole, name))

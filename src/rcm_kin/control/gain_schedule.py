@@ -19,7 +19,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import control
 import numpy as np
 
 from rcm_kin.control.friction_compensation import DEFAULT_RAMP_DEG_S, FrictionCompensation, friction_compensation
@@ -46,6 +45,8 @@ def axis_model(A: np.ndarray, B: np.ndarray, axis: int) -> tuple[np.ndarray, np.
 def lqr_axis(a: np.ndarray, b: np.ndarray, Q: np.ndarray, R: np.ndarray, integral: bool = False) -> np.ndarray:
     """State-feedback row ``K`` of ``u = -K x`` (python-control ``lqr``) for one axis; with
     ``integral`` the state is augmented by the integral of the first state (LQI)."""
+    import control   # python-control costs ~120 MB to import: only where gains are designed
+
     extra = {"integral_action": np.array([[1.0, 0.0]])} if integral else {}
     K, _, _ = control.lqr(a, b, Q, R, **extra)
     return np.asarray(K)[0]

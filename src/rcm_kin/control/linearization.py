@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import casadi as ca
-import control
 import numpy as np
 import pinocchio as pin
 from scipy.linalg import expm
@@ -27,8 +26,11 @@ from rcm_kin.dynamics.drive import DRIVEN, DRIVEN_UNIT
 from rcm_kin.dynamics.gravity import offset_moments
 from rcm_kin.dynamics.state_space import DrivenDynamics, holding_pwm
 from rcm_kin.errors import RcmKinError
+from rcm_kin.symbolic.compiled import compiled, map_points
 
 if TYPE_CHECKING:
+    import control
+
     from rcm_kin.robot import Robot
 
 
@@ -53,6 +55,8 @@ class Linearization:
         """The model as a python-control ``StateSpace`` in the deviations from ``(x0, u0)``, with
         labelled signals: states ``roll [rad]`` .. ``insertion rate [m/s]``, inputs
         ``roll PWM [counts]`` .., outputs the joint positions ``roll [rad]`` .. ``insertion [m]``."""
+        import control   # python-control costs ~120 MB and a second to import: only when asked for
+
         positions = [f"{j} [{DRIVEN_UNIT[j]}]" for j in DRIVEN]
         rates = [f"{j} rate [{DRIVEN_UNIT[j]}/s]" for j in DRIVEN]
         return control.ss(self.A, self.B, self.C, self.D, states=positions + rates,
@@ -109,27 +113,23 @@ class LinearizationGrid:
 
 
 def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096) -> LinearizationGrid:
-    """Linear models at (N, 3) poses with one mapped CasADi call per chunk of poses."""
+    """Linear models at (N, 3) poses: the compiled gravity and Jacobians
+    (:mod:`rcm_kin.symbolic.compiled`) mapped over chunks of ``chunk`` poses."""
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     if Q.ndim != 2 or Q.shape[1] != 3 or not np.all(np.isfinite(Q)):
         raise RcmKinError(f"poses must be finite rows of 3 values ({', '.join(DRIVEN)}), got shape {Q.shape}")
     check_in_range(model, Q)
-    u0, A, B = [], [], []
-    for i in range(0, len(Q), chunk):
-        q = Q[i:i + chunk]
-        gravity, jacobians = _mapped(model, len(q))
-        u = np.array(gravity(q.T)).T / model.drive.input_gain
-        a, b = jacobians(np.hstack([q, np.zeros_like(q)]).T, u.T)
-        u0.append(u)
-        A.append(np.array(a).reshape(6, -1, 6).transpose(1, 0, 2))
-        B.append(np.array(b).reshape(6, -1, 3).transpose(1, 0, 2))
-    return LinearizationGrid(Q, np.concatenate(u0), np.concatenate(A), np.concatenate(B))
+    gravity, jacobians = _compiled(model)
+    (g,) = map_points(gravity, Q, chunk=chunk)
+    u0 = g / model.drive.input_gain
+    A, B = map_points(jacobians, np.hstack([Q, np.zeros_like(Q)]), u0, chunk=chunk)
+    return LinearizationGrid(Q, u0, A, B)
 
 
 @functools.lru_cache(maxsize=8)
-def _mapped(model: DrivenDynamics, n: int) -> tuple[ca.Function, ca.Function]:
-    """Holding gravity and (A, B) evaluated at n poses in one call (CasADi map)."""
-    return model.gravity.map(n), model.jacobians.map(n)
+def _compiled(model: DrivenDynamics) -> tuple[ca.Function, ca.Function]:
+    """Holding gravity and (A, B), compiled (built once, then loaded from the cache)."""
+    return compiled(model.gravity), compiled(model.jacobians)
 
 
 def linearize_finite_differences(model: DrivenDynamics, x, u, step: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:

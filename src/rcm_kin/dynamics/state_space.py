@@ -98,18 +98,13 @@ def driven_dynamics(robot: Robot, params: DriveParameters | None = None, q_fixed
     drive = drive_constants(params)
     joints = tree_joints(robot.tree)
     gravity = np.array(robot.tree.gravity.linear)
-
-    # open-tree configuration of the driven coordinates: q_tree = S (E q + q_rest) + offsets
-    S = relation_jacobian(robot)
-    rest = q_fixed.copy()
-    rest[index] = 0.0
     q, v, a, u = (ca.SX.sym(s, 3) for s in ("q", "v", "a", "u"))
-    phi = linear_closure(S[:, index], tree_configuration(robot, rest), q)
+    phi = _driven_closure(robot, q_fixed, q)
 
     rigid = closed_chain_rnea(joints, gravity, phi, q, v, a)
     zero = ca.DM.zeros(3)
     g_rigid = ca.substitute(rigid, ca.vertcat(v, a), ca.vertcat(zero, zero))
-    g_offsets = _offset_gravity(robot, joints, gravity, params, phi, q)
+    g_offsets = _offset_gravity(robot, joints, gravity, params.gravity_offsets, phi, q)
     M = ca.jacobian(rigid, a) + ca.diag(ca.DM(drive.reflected_inertia))
     bias = ca.substitute(rigid, a, zero) + g_offsets
 
@@ -129,10 +124,34 @@ def driven_dynamics(robot: Robot, params: DriveParameters | None = None, q_fixed
         gravity=ca.Function("gravity", [q], [g_rigid + g_offsets], ["q"], ["g"]))
 
 
-def _offset_gravity(robot: Robot, joints, gravity, params, phi, q) -> ca.SX:
+def _driven_closure(robot: Robot, q_fixed: np.ndarray, q) -> ca.SX:
+    """Open-tree configuration of the driven coordinates ``q``: ``S (E q + q_rest) + offsets``,
+    the other actuated joints held at ``q_fixed``."""
+    index = [robot.actuated.index(j) for j in DRIVEN]
+    rest = q_fixed.copy()
+    rest[index] = 0.0
+    return linear_closure(relation_jacobian(robot)[:, index], tree_configuration(robot, rest), q)
+
+
+def driven_gravity_function(robot: Robot, offsets: dict, q_fixed=None) -> ca.Function:
+    """``q -> g(q)`` (N m, N) of the driven joints with the first-moment ``offsets`` ({link: (3,)
+    kg m}, e.g. ``DriveParameters.gravity_offsets``): the ``gravity`` of :func:`driven_dynamics`
+    without building the rest of the model."""
+    if not set(DRIVEN) <= set(robot.actuated):
+        raise RcmKinError(f"{robot.name} has no driven joints {', '.join(DRIVEN)}: the drive model is the PSM's")
+    q_fixed = robot.check_q(np.zeros(robot.nq) if q_fixed is None else q_fixed)
+    joints = tree_joints(robot.tree)
+    gravity = np.array(robot.tree.gravity.linear)
+    q, zero = ca.SX.sym("q", 3), ca.DM.zeros(3)
+    phi = _driven_closure(robot, q_fixed, q)
+    g = closed_chain_rnea(joints, gravity, phi, q, zero, zero) + _offset_gravity(robot, joints, gravity, offsets, phi, q)
+    return ca.Function("driven_gravity", [q], [g], ["q"], ["g"])
+
+
+def _offset_gravity(robot: Robot, joints, gravity, offsets: dict, phi, q) -> ca.SX:
     """Generalised gravity of the calibrated first moments (mass-free, kg m in link frames):
     the gradient of their potential ``-g . (R_j h_j)``."""
-    moments = offset_moments(robot, params.gravity_offsets)
+    moments = offset_moments(robot, offsets)
     if not moments:
         return ca.SX.zeros(3)
     placements = world_placements(joints, phi)

@@ -15,64 +15,80 @@ link in index.html is relative to the report folder, so the folder can be moved 
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from rcm_kin.errors import RcmKinError, output_folder
 
 
 def write_report(out: str | Path, data: str | Path | None = None, map_points: int = 61,
-                 progress: bool = False) -> Path:
+                 progress: bool = False, workers: int | None = None) -> Path:
     """Run the pipeline on the bundled models (and, with ``data``, on a folder of measured logs);
-    ``map_points`` per axis of the holding-effort maps. Returns the path of index.html."""
+    ``map_points`` per axis of the holding-effort maps. Returns the path of index.html.
+
+    Independent sections run in a pool of ``workers`` processes (default: the cores this process
+    may use, at most 4); each writes its own files and returns its data object, and the index
+    lists them in a fixed order, so the report is the same whatever the number of workers or the
+    order in which they finish."""
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
     from tqdm import tqdm
 
     from rcm_kin.report.render import render_index
-    from rcm_kin.report.sections.gravity import gravity_section
     from rcm_kin.report.sections.drive_train import drive_train_section
-    from rcm_kin.report.sections.linear_models import linear_models_section
+    from rcm_kin.report.sections.gravity import gravity_section
     from rcm_kin.report.sections.measured import measured_section
     from rcm_kin.report.sections.models import models_section
     from rcm_kin.report.sections.mujoco import mujoco_section
     from rcm_kin.report.sections.robots import robots_section
     from rcm_kin.report.sections.safety import safety_section
-    from rcm_kin.report.sections.schedule import schedule_section
-    from rcm_kin.report.sections.tracking import tracking_section
 
     if map_points < 2:
         raise RcmKinError("the effort maps need at least 2 points per axis")
     if data is not None and not Path(data).is_dir():
         raise RcmKinError(f"no data folder at {data}")
+    workers = workers or min(4, len(os.sched_getaffinity(0)))
     out = output_folder(out)
-    with tqdm(total=9 if data is None else 10, desc="report", unit="step", disable=not progress) as bar:
-        def step(name: str) -> None:
-            bar.set_postfix_str(name)
-            bar.update()
-
-        robots = robots_section(out)
-        step("robot views")
-        models = models_section(out)
-        step("models checked")
-        gravity = gravity_section(out, map_points)
-        step("effort maps")
-        schedule = schedule_section(out)
-        step("gain schedule")
-        linear = linear_models_section(out, schedule.schedule)
-        step("linear models")
-        tracking = tracking_section(out, schedule.schedule, _mtm_recording(data))
-        step("tracking experiments")
-        sections = [robots, models, gravity, linear, schedule, tracking, safety_section(out)]
-        step("safety")
-        sections += [s for s in [mujoco_section(out)] if s is not None]   # with the [mujoco] extra
-        step("MuJoCo")
+    # (label, function, arguments), the longest first (safety ~18 s, the control chain ~15 s, the
+    # rest a few s each on this machine) so that the pool's workers finish together
+    jobs = [("safety", safety_section, (out,)),
+            ("gain schedule, linear models, tracking", _control_sections, (out, _mtm_recording(data))),
+            ("effort maps", gravity_section, (out, map_points)), ("robot views", robots_section, (out,)),
+            ("models checked", models_section, (out,)), ("MuJoCo", mujoco_section, (out,))]
+    if data is not None:
+        jobs += [("measured data", measured_section, (out, Path(data))),
+                 ("identified drive train", drive_train_section, (out, Path(data)))]
+    with tqdm(total=len(jobs) + 1, desc="report", unit="section", disable=not progress) as bar:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("fork")) as pool:
+            futures = [pool.submit(function, *arguments) for _, function, arguments in jobs]
+            results = {}
+            for (label, _, _), future in zip(jobs, futures):
+                results[label] = future.result()
+                bar.set_postfix_str(label)
+                bar.update()
+        safety, (schedule, linear, tracking), gravity, robots, models = (results[label] for label, _, _ in jobs[:5])
+        sections = [robots, models, gravity, linear, schedule, tracking, safety]
+        sections += [s for s in [results["MuJoCo"]] if s is not None]   # with the [mujoco] extra
         if data is not None:
-            sections.append(measured_section(out, Path(data)))
-            identified = drive_train_section(out, Path(data))
+            sections.append(results["measured data"])
+            identified = results["identified drive train"]
             sections += [identified] if identified is not None else []
-            step("measured data")
         index = out / "index.html"
         index.write_text(render_index(sections))
-        step("index.html")
+        bar.set_postfix_str("index.html")
+        bar.update()
     return index
+
+
+def _control_sections(out: Path, recording: Path | None) -> tuple:
+    """The sections that share the gain schedule: the schedule, the linear models, the tracking."""
+    from rcm_kin.report.sections.linear_models import linear_models_section
+    from rcm_kin.report.sections.schedule import schedule_section
+    from rcm_kin.report.sections.tracking import tracking_section
+
+    schedule = schedule_section(out)
+    return schedule, linear_models_section(out, schedule.schedule), tracking_section(out, schedule.schedule, recording)
 
 
 def _mtm_recording(data) -> Path | None:

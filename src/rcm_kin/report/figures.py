@@ -19,6 +19,7 @@ from rcm_kin.errors import RcmKinError  # noqa: E402
 # line styles that stay apart when curves coincide (e.g. roll -15 and +15 by symmetry)
 STYLES = ({"ls": "-", "marker": "o", "ms": 4}, {"ls": "-", "lw": 2.4, "alpha": 0.7},
           {"ls": "--", "marker": "x", "ms": 6}, {"ls": ":", "marker": "^", "ms": 4}, {"ls": "-."})
+HEATMAP_SAMPLES = 301      # poses per axis drawn in a heat map at most
 
 
 def _save(fig, path: str | Path) -> Path:
@@ -62,14 +63,17 @@ def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0) -> Path:
     """PWM and voltage heat maps of roll and pitch over the roll x pitch grid at one insertion."""
     e = gmap.effort
     fig, axes = plt.subplots(2, 2, figsize=(10, 8), constrained_layout=True)
-    extent = [gmap.roll_deg[0], gmap.roll_deg[-1], gmap.pitch_deg[0], gmap.pitch_deg[-1]]
+    # a panel is about 400 pixels wide: grids finer than HEATMAP_SAMPLES are drawn from every k-th pose
+    rows, cols = (slice(None, None, -(-n // HEATMAP_SAMPLES)) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
+    roll, pitch = gmap.roll_deg[cols], gmap.pitch_deg[rows]
+    extent = [roll[0], roll[-1], pitch[0], pitch[-1]]
     for col, (joint, k) in enumerate((("roll", 0), ("pitch", 1))):
         for row, (quantity, unit) in enumerate((("pwm", "counts"), ("voltage", "V"))):
-            data = getattr(e, quantity)[:, :, insertion_index, k]
+            data = getattr(e, quantity)[rows, cols, insertion_index, k]
             ax = axes[row, col]
             im = ax.imshow(data, origin="lower", extent=extent, aspect="auto", cmap="coolwarm",
                            vmin=-np.abs(data).max(), vmax=np.abs(data).max())
-            ax.contour(gmap.roll_deg, gmap.pitch_deg, data, colors="k", linewidths=0.5, levels=9)
+            ax.contour(roll, pitch, data, colors="k", linewidths=0.5, levels=9)
             ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=f"{joint} holding {quantity} ({unit})")
             fig.colorbar(im, ax=ax)
     fig.suptitle(f"Holding effort at insertion {gmap.insertion[insertion_index] * 1e3:.0f} mm "

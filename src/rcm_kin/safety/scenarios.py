@@ -28,7 +28,7 @@ import numpy as np
 from rcm_kin.control.linearization import zero_order_hold
 from rcm_kin.errors import RcmKinError
 from rcm_kin.safety.barriers import Barrier, Ellipsoid, MovingPlane, Slab, band_width
-from rcm_kin.safety.cbf import barrier_terms, blended_control, cbf_qp
+from rcm_kin.safety.cbf import barrier_terms, blended_control, cbf_qp_problem, solve_cbf_qp
 
 SCENARIOS = ("ellipsoid", "slide", "heart", "psm")
 FILTERS = ("blend", "qp", "none")
@@ -67,6 +67,7 @@ def run_linear(name: str, A, B, barriers: Sequence[Barrier], eps: float,
     n_steps = int(round(duration / dt))
     x = np.asarray(x0, dtype=float)
     xs, us, bs, ss = [], [], [], []
+    qp = cbf_qp_problem(B.shape[1], len(barriers), u_max) if filter == "qp" else None
     for k in range(n_steps):
         t = k * dt
         u_nom = nominal(t, x)
@@ -78,7 +79,7 @@ def run_linear(name: str, A, B, barriers: Sequence[Barrier], eps: float,
             # the sampled condition (B(x+) - B(x)) / dt <= -alpha B, B linearised about x: safe for
             # the concave ellipsoid and the affine plane, second order for the slab
             sampled = [barrier_terms(b, x, (Ad @ x - x) / dt, Bd / dt) for b in barriers]
-            u = cbf_qp(u_nom, sampled, QP_ALPHA, u_max)
+            u = solve_cbf_qp(qp, u_nom, sampled, QP_ALPHA)
             sigma = float(np.linalg.norm(u - np.clip(u_nom, -u_max, u_max)) > 1e-6)
         else:
             u = u_nom

@@ -19,6 +19,7 @@ from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.errors import RcmKinError
 from rcm_kin.robot import load_robot
 from rcm_kin.simulation.controllers import make_controller
+from rcm_kin.simulation.fast_path import compiled_period_map, fast_controller, fast_plant
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import SimulationResult, simulate
 from rcm_kin.simulation.plant import drive_train_plant, period_map
@@ -40,18 +41,20 @@ def experiment_reference(experiment: str, period: float, duration: float | None 
     return target_reference(load_robot("psm"), duration, period, trajectory)
 
 
-_BUILT: dict[str, tuple] = {}     # repr(params, period, substeps) -> (plant, schedule); models take ~1 s
+_BUILT: dict[str, tuple] = {}     # repr(params, period, substeps, fast) -> (plant, schedule); models take ~1 s
 
 
-def _plant_and_schedule(params: DriveParameters, period: float, substeps: int):
-    key = repr((params, period, substeps))
+def _plant_and_schedule(params: DriveParameters, period: float, substeps: int, fast: bool):
+    key = repr((params, period, substeps, fast))
     if key not in _BUILT:
         psm = load_robot("psm")
         if params.drive_train:
             plant = drive_train_plant(psm, params, period)
+            plant = fast_plant(plant) if fast else plant
         else:
             smooth = period_map(driven_dynamics(psm, params).forward, period, substeps)
-            plant = SmoothPlant(lambda x, u: np.array(smooth(x, u)).ravel())
+            plant = SmoothPlant(compiled_period_map(smooth) if fast else
+                                lambda x, u: np.array(smooth(x, u)).ravel())
         schedule = schedule_gains(driven_dynamics(psm, params, coulomb=False), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
         _BUILT[key] = plant, schedule
     return _BUILT[key]
@@ -68,20 +71,23 @@ class SmoothPlant:
 
 
 def psm_plant_and_schedule(params: DriveParameters | None = None, period: float = FirmwareSettings().period,
-                           substeps: int = 4):
+                           substeps: int = 4, fast: bool = False):
     """``(plant, GainSchedule)`` of the PSM with ``params`` (default: shipped set). The plant has
     ``step(x, u) -> x`` and ``initial(q) -> x``: the identified drive trains
     (:class:`~rcm_kin.simulation.plant.DriveTrainPlant`) when ``params`` has them, else the
-    smooth model."""
-    return _plant_and_schedule(params or load_drive_parameters(), period, substeps)
+    smooth model; ``fast``: its model functions compiled (:mod:`rcm_kin.simulation.fast_path`)."""
+    return _plant_and_schedule(params or load_drive_parameters(), period, substeps, fast)
 
 
 def run_experiment(experiment: str, controller: str, duration: float | None = None,
                    params: DriveParameters | None = None, settings: FirmwareSettings | None = None,
-                   trajectory=None, seed: int = 0, progress: bool = False) -> SimulationResult:
-    """Simulate one thesis experiment with one controller (names as in the CLI)."""
+                   trajectory=None, seed: int = 0, progress: bool = False, fast: bool = True) -> SimulationResult:
+    """Simulate one thesis experiment with one controller (names as in the CLI). ``fast``: the
+    fast path (:mod:`rcm_kin.simulation.fast_path`, compiled plant functions and stacked gain
+    tables); ``False`` runs the readable reference classes."""
     settings = settings or FirmwareSettings()
-    plant, schedule = psm_plant_and_schedule(params, settings.period)
+    plant, schedule = psm_plant_and_schedule(params, settings.period, fast=fast)
     reference = experiment_reference(experiment, settings.period, duration, trajectory)
-    return simulate(plant.step, make_controller(controller, schedule), reference, settings, seed=seed,
+    law = make_controller(controller, schedule)
+    return simulate(plant.step, fast_controller(law) if fast else law, reference, settings, seed=seed,
                     progress=progress, initial=plant.initial)

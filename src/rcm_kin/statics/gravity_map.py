@@ -1,20 +1,24 @@
 """Holding torque, voltage and PWM of the PSM's driven joints over pose grids, as CSV and figures.
 
 Grids are roll x pitch at one insertion, or a sweep of insertion; every pose is evaluated by
-the vectorised gravity (:func:`rcm_kin.dynamics.gravity.gravity_batch`) with the calibrated
-gravity offsets, then through the drive model. Angles in the CSV are degrees (for people);
+the driven model's gravity compiled to C (:func:`driven_gravity`; the same numbers as the
+vectorised :func:`rcm_kin.dynamics.gravity.gravity_batch`) with the calibrated gravity offsets,
+then through the drive model. Angles in the CSV are degrees (for people);
 torques N m (insertion N), voltage V, PWM counts with the hardware sign.
 """
 
 from __future__ import annotations
 
-import csv
-from dataclasses import dataclass
+import functools
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import casadi as ca
 import numpy as np
+from tqdm import tqdm
 
+from rcm_kin.csv_table import write_csv_blocks
 from rcm_kin.dynamics.drive import DRIVEN, DriveEffort, DriveParameters, drive_effort, load_drive_parameters
 from rcm_kin.dynamics.gravity import gravity_batch
 from rcm_kin.errors import RcmKinError
@@ -74,26 +78,71 @@ def gravity_map(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg, inser
             shown = (np.degrees([lo, hi]) if unit == "deg" else [lo, hi])
             raise RcmKinError(f"{name} range outside the joint limits [{shown[0]:g}, {shown[1]:g}] {unit}")
     P, R, I = np.meshgrid(np.radians(pitch_deg), np.radians(roll_deg), insertion, indexing="ij")
-    Q = np.zeros((P.size, robot.nq))
-    Q[:, 0], Q[:, 1], Q[:, 2] = R.ravel(), P.ravel(), I.ravel()
-    tau = gravity_batch(robot, Q, drive.gravity_offsets, progress=progress)[:, :3]
-    effort = drive_effort(drive, tau.reshape(P.shape + (3,)))
-    return GravityMap(roll_deg, pitch_deg, insertion, effort)
+    Q = np.column_stack([R.ravel(), P.ravel(), I.ravel()])
+    shape = P.shape + (3,)
+    del P, R, I                                      # large grids: keep the peak memory down
+    tau = driven_gravity(robot, drive, Q, progress).reshape(shape)
+    del Q
+    return GravityMap(roll_deg, pitch_deg, insertion, drive_effort_blocks(drive, tau))
 
 
-def write_csv(gmap: GravityMap, path: str | Path) -> Path:
-    """One row per pose: angles, insertion, then tau, voltage and PWM of each driven joint."""
-    path = Path(path)
+def drive_effort_blocks(drive: DriveParameters, tau: np.ndarray, block: int = 1 << 16) -> DriveEffort:
+    """:func:`drive_effort` at holding (v = 0) for torques (..., 3), evaluated in blocks of ``block``
+    poses into the result arrays, so that its temporaries stay the size of a block."""
+    flat = tau.reshape(-1, 3)
+    out = {f.name: np.empty(flat.shape, dtype=bool if f.name == "saturated" else float)
+           for f in fields(DriveEffort) if f.name != "tau"}
+    for i in range(0, len(flat), block):
+        part = drive_effort(drive, flat[i:i + block])
+        for name, values in out.items():
+            values[i:i + block] = getattr(part, name)
+    return DriveEffort(tau, **{name: values.reshape(tau.shape) for name, values in out.items()})
+
+
+def driven_gravity(robot: Robot, drive: DriveParameters, Q: np.ndarray, progress: bool = False,
+                   block: int = 1 << 16) -> np.ndarray:
+    """Holding torques (N, 3) of the driven joints at (N, 3) poses (rad, rad, m; the instrument
+    joints at zero), calibrated offsets included: the driven model's gravity
+    (:func:`rcm_kin.dynamics.state_space.driven_gravity_function`, the numbers of
+    :func:`gravity_batch`) compiled to C and
+    mapped over the poses; ``progress`` shows a bar over blocks of ``block`` poses."""
+    from rcm_kin.symbolic.compiled import map_points
+
+    offsets = tuple((link, tuple(float(x) for x in h)) for link, h in sorted(drive.gravity_offsets.items()))
+    gravity = _compiled_gravity(robot, offsets)
+    starts = range(0, len(Q), block)
+    if progress and len(starts) > 1:
+        starts = tqdm(starts, desc="gravity", unit="block")
+    tau = np.empty((len(Q), 3))
+    for i in starts:
+        tau[i:i + block] = map_points(gravity, Q[i:i + block])[0]
+    return tau
+
+
+@functools.lru_cache(maxsize=8)
+def _compiled_gravity(robot: Robot, offsets: tuple) -> ca.Function:
+    """The driven gravity with first moments ``offsets`` ((link, (hx, hy, hz)), ...), compiled:
+    built once per robot and offsets in a process (and on disk by :mod:`rcm_kin.symbolic.compiled`)."""
+    from rcm_kin.dynamics.state_space import driven_gravity_function
+    from rcm_kin.symbolic.compiled import compiled
+
+    return compiled(driven_gravity_function(robot, {link: np.array(h) for link, h in offsets}))
+
+
+def write_csv(gmap: GravityMap, path: str | Path, block: int = 1 << 14) -> Path:
+    """One row per pose: angles, insertion, then tau, voltage and PWM of each driven joint (9
+    decimals, :mod:`rcm_kin.csv_table`), written in blocks of ``block`` rows (pitch slowest,
+    insertion fastest)."""
     header = ["roll_deg", "pitch_deg", "insertion_m"] + [f"{q}_{j}" for q in ("tau", "voltage", "pwm") for j in DRIVEN]
-    P, R, I = np.meshgrid(gmap.pitch_deg, gmap.roll_deg, gmap.insertion, indexing="ij")
     e = gmap.effort
-    table = np.column_stack([R.ravel(), P.ravel(), I.ravel(), e.tau.reshape(-1, 3), e.voltage.reshape(-1, 3),
-                             e.pwm.reshape(-1, 3)])
-    with path.open("w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(header)
-        writer.writerows(np.round(table, 9).tolist())
-    return path
+    shape = e.tau.shape[:3]
+    efforts = [x.reshape(-1, 3) for x in (e.tau, e.voltage, e.pwm)]
+
+    def rows(start: int) -> np.ndarray:
+        p, r, i = np.unravel_index(np.arange(start, min(start + block, efforts[0].shape[0])), shape)
+        return np.column_stack([gmap.roll_deg[r], gmap.pitch_deg[p], gmap.insertion[i]]
+                               + [x[start:start + block] for x in efforts])
+    return write_csv_blocks(path, header, (rows(i) for i in range(0, efforts[0].shape[0], block)))
 
 
 def write_gravity_maps(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg, insertion: float, out: Path,

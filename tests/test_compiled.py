@@ -1,0 +1,154 @@
+"""Compiled CasADi functions: same numbers as the interpreted ones, cached, and a fallback."""
+
+from __future__ import annotations
+
+import os
+import shutil
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from rcm_kin.errors import RcmKinError
+from rcm_kin.symbolic import compiled as comp
+
+
+needs_compiler = pytest.mark.skipif(shutil.which(os.environ.get("CC") or "cc") is None,
+                                    reason="no C compiler (CC hidden): the fallback run")
+
+
+@pytest.fixture()
+def cache(tmp_path, monkeypatch):
+    """An empty cache folder for one test."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    comp._load.cache_clear()
+    return tmp_path / "rcm-kin" / "casadi"
+
+
+def random_states(model, n, seed):
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(model.lower, model.upper, (n, 3))
+    v = rng.normal(0, 0.5, (n, 3))
+    u = rng.uniform(-200, 200, (n, 3))
+    return np.hstack([q, v]), u
+
+
+@needs_compiler
+def test_compiled_model_functions_equal_interpreted(cache, model):
+    """forward, jacobians (sparse outputs) and gravity: the C build agrees to 1e-12."""
+    X, U = random_states(model, 20, 0)
+    for fn in (model.forward, model.jacobians):
+        fast = comp.compiled(fn)
+        assert fast.class_name() != fn.class_name()   # a loaded library, not the SX function
+        for x, u in zip(X, U):
+            for a, b in zip(fast.call([x, u]), fn.call([x, u]), strict=True):
+                np.testing.assert_allclose(np.array(a), np.array(b), rtol=1e-12, atol=1e-12)
+    g = comp.compiled(model.gravity)
+    for x in X:
+        np.testing.assert_allclose(np.array(g(x[:3])), np.array(model.gravity(x[:3])), rtol=1e-12, atol=1e-12)
+    # mapped: the loop over poses stays in C
+    A, B = comp.compiled(model.jacobians).map(len(X))(X.T, U.T)
+    for k, (x, u) in enumerate(zip(X, U)):
+        a, b = model.jacobians(x, u)
+        np.testing.assert_allclose(np.array(A)[:, 6 * k:6 * k + 6], np.array(a), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(np.array(B)[:, 3 * k:3 * k + 3], np.array(b), rtol=1e-12, atol=1e-12)
+
+
+@needs_compiler
+def test_built_once_then_loaded_from_the_cache(cache, model):
+    comp.compiled(model.gravity)
+    libraries = list(cache.glob("*.so"))
+    assert len(libraries) == 1 and libraries[0].name.startswith("gravity_")
+    stamp = libraries[0].stat().st_mtime_ns
+    comp._load.cache_clear()
+    comp.compiled(model.gravity)
+    assert list(cache.glob("*.so")) == libraries and libraries[0].stat().st_mtime_ns == stamp
+    assert [p for p in cache.iterdir() if p.is_dir()] == []   # no build folder left behind
+
+
+def test_key_follows_the_function_and_the_compiler(model):
+    command = ["cc"]
+    key = comp.function_key(model.gravity, command)
+    assert key == comp.function_key(model.gravity, command)
+    assert key != comp.function_key(model.bias, command)
+    assert key != comp.function_key(model.gravity, ["gcc"])
+
+
+def test_cache_folder_respects_xdg(monkeypatch, tmp_path):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert comp.cache_folder() == tmp_path / "rcm-kin" / "casadi"
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    assert str(comp.cache_folder()).endswith(".cache/rcm-kin/casadi")
+
+
+def test_no_compiler_falls_back_with_one_line(cache, model, capsys, tmp_path, monkeypatch):
+    """With the compiler hidden the interpreted function comes back and stderr says so once."""
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    f1, f2 = comp.compiled(model.gravity), comp.compiled(model.forward)
+    assert f1 is model.gravity and f2 is model.forward
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("warning: no C compiler") and "interpreted" in err[0]
+    assert not cache.exists()
+
+
+def test_unwritable_cache_falls_back_with_one_line(model, monkeypatch, tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))           # the cache would have to live in a file
+    assert comp.compiled(model.gravity) is model.gravity
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("warning: cannot write the compiled-function cache")
+
+
+def test_compiler_failure_is_an_error(cache, model, monkeypatch):
+    monkeypatch.setenv("CC", "false")
+    with pytest.raises(RcmKinError, match="compiling gravity with false failed"):
+        comp.compiled(model.gravity)
+
+
+@pytest.mark.parametrize("build", [False, True])
+def test_single_call_matches_a_plain_call(cache, model, build):
+    fn = comp.compiled(model.jacobians) if build else model.jacobians
+    call = comp.single_call(fn)
+    X, U = random_states(model, 5, 1)
+    for x, u in zip(X, U):
+        A, B = call(x, u)
+        a, b = model.jacobians(x, u)
+        assert A.shape == (6, 6) and B.shape == (6, 3)
+        np.testing.assert_allclose(A, np.array(a), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(B, np.array(b), rtol=1e-12, atol=1e-12)
+    (xdot,) = comp.single_call(model.forward)(X[0], U[0])
+    np.testing.assert_array_equal(xdot, np.array(model.forward(X[0], U[0])).ravel())
+
+
+def test_single_call_dense_matrix_layout():
+    x = ca.SX.sym("x", 2)
+    f = ca.Function("f", [x], [ca.vertcat(ca.horzcat(x[0], 2 * x[1], 3.0), ca.horzcat(x[1], x[0] * x[1], 5.0))])
+    (out,) = comp.single_call(f)(np.array([2.0, 7.0]))
+    np.testing.assert_array_equal(out, [[2.0, 14.0, 3.0], [7.0, 14.0, 5.0]])
+
+
+@pytest.mark.parametrize("build", [False, True])
+def test_map_points_matches_point_calls(cache, model, build):
+    """Chunks of 7 over 20 points (a remainder chunk), sparse (A, B) filled densely."""
+    X, U = random_states(model, 20, 2)
+    fn = comp.compiled(model.jacobians) if build else model.jacobians
+    A, B = comp.map_points(fn, X, U, chunk=7)
+    assert A.shape == (20, 6, 6) and B.shape == (20, 6, 3)
+    (g,) = comp.map_points(comp.compiled(model.gravity) if build else model.gravity, X[:, :3], chunk=7)
+    assert g.shape == (20, 3)
+    for k, (x, u) in enumerate(zip(X, U)):
+        a, b = model.jacobians(x, u)
+        np.testing.assert_allclose(A[k], np.array(a), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(B[k], np.array(b), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(g[k], np.array(model.gravity(x[:3])).ravel(), rtol=1e-12, atol=1e-12)
+    with pytest.raises(RcmKinError, match="needs 6 dense values"):
+        comp.map_points(fn, X[:, :3], U)
+
+
+def test_map_points_matrix_and_scalar_outputs():
+    x = ca.SX.sym("x", 2)
+    f = ca.Function("f", [x], [ca.horzcat(x, 2 * x), x[0] * x[1]])
+    M, s = comp.map_points(f, np.array([[1.0, 2.0], [3.0, 4.0]]))
+    np.testing.assert_array_equal(M, [[[1, 2], [2, 4]], [[3, 6], [4, 8]]])
+    np.testing.assert_array_equal(s, [2.0, 12.0])
