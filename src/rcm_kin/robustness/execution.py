@@ -52,7 +52,7 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
         n = workers or machine_workers()
         if n < 1:
             raise RcmKinError(f"the local cluster needs at least 1 worker, got {n}")
-        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                           silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
             yield client
         return

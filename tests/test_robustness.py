@@ -1,0 +1,301 @@
+"""Robustness runs: draws, statistics, and the same answer on any Dask cluster (embedded, external,
+with a worker killed mid-run). The runs are tiny (4-6 samples of a 0.25 s sinusoid) so the
+clusters' start-up dominates."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import rcm_kin
+from rcm_kin.cli import main
+from rcm_kin.dynamics.drive import DRIVEN, load_drive_parameters
+from rcm_kin.robustness.execution import batches_of, dask_client, run_robustness
+from rcm_kin.robustness.sampling import (DEFAULT_RELATIVE_SPREAD, draw, read_standard_errors, sample_seeds,
+                                         uncertain_parameters, with_values)
+from rcm_kin.robustness.statistics import spread, summarise
+from rcm_kin.robustness.task import SampleOutcome, Study, run_batch
+
+CONTROLLERS = ("p", "scheduled")
+DURATION = 0.25                 # s of the sinusoid: the statistics do not need more
+SAMPLES = 4
+SEED = 7
+ARGS = ["robustness", "psm", "--controller", "p", "--controller", "scheduled", "--experiment", "sine",
+        "--samples", str(SAMPLES), "--seed", str(SEED), "--duration", str(DURATION), "--batch-size", "1", "--json"]
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_drive_parameters()
+
+
+@pytest.fixture(scope="module")
+def study(params):
+    return Study(params, uncertain_parameters(params), CONTROLLERS, "sine", DURATION)
+
+
+@pytest.fixture(scope="module")
+def serial(study):
+    """The reference: every sample computed in this process, no Dask."""
+    return summarise(study, SEED, run_batch(study, list(enumerate(sample_seeds(SEED, SAMPLES)))))
+
+
+# --- draws -------------------------------------------------------------------------------------
+
+def test_sample_seeds_are_spawned_children():
+    children = sample_seeds(3, 5)
+    for i, child in enumerate(children):
+        again = np.random.SeedSequence(3, spawn_key=(i,))
+        assert np.array_equal(child.generate_state(4), again.generate_state(4))
+
+
+def test_draws_follow_the_stated_distributions(params):
+    uncertain = uncertain_parameters(params)
+    values = np.array([draw(uncertain, s) for s in sample_seeds(0, 4000)])
+    z = np.empty_like(values)
+    for k, u in enumerate(uncertain):
+        z[:, k] = (np.log(values[:, k] / u.nominal) / (u.sigma / u.nominal) if u.positive
+                   else (values[:, k] - u.nominal) / u.sigma)
+    # standard normal: mean within 4 standard errors of 0, standard deviation within 4 of 1
+    n = len(values)
+    assert np.all(np.abs(z.mean(axis=0)) < 4 / np.sqrt(n))
+    assert np.all(np.abs(z.std(axis=0) - 1) < 4 / np.sqrt(2 * n))
+    assert np.all(values[:, [u.positive for u in uncertain]] > 0)
+
+
+def test_uncertain_parameters_of_the_shipped_set(params):
+    uncertain = {u.name: u for u in uncertain_parameters(params)}
+    roll = params.drive_train["roll"]
+    assert uncertain["drive_train.roll.viscous"].sigma == pytest.approx(
+        DEFAULT_RELATIVE_SPREAD["drive_train"] * roll.viscous, rel=1e-12)
+    assert not uncertain["drive_train.roll.presliding_slope"].positive
+    assert "drive_train.roll.stribeck_velocity" not in uncertain      # stiction is off: its velocity does nothing
+    assert "drive_train.roll.cable_stiffness" not in uncertain        # 0: no scale
+    assert "roll.coulomb" not in uncertain                             # follows the drive train
+    assert uncertain["pitch.coulomb"].sigma == pytest.approx(DEFAULT_RELATIVE_SPREAD["friction"] * params["pitch"].coulomb)
+
+
+def test_nominal_values_give_back_the_nominal_set(params):
+    uncertain = uncertain_parameters(params)
+    same = with_values(params, uncertain, [u.nominal for u in uncertain])
+    for joint in DRIVEN:
+        assert vars(same[joint]) == pytest.approx(vars(params[joint]), rel=1e-12, abs=0)
+    assert same.drive_train == params.drive_train
+    for link, moment in params.gravity_offsets.items():
+        assert np.array_equal(same.gravity_offsets[link], moment)
+
+
+def test_drawn_drive_train_moves_the_smooth_constants(params):
+    uncertain = uncertain_parameters(params)
+    values = [2 * u.nominal if u.name == "drive_train.roll.presliding_force" else u.nominal for u in uncertain]
+    drawn = with_values(params, uncertain, values)
+    roll = params.drive_train["roll"]
+    assert drawn.drive_train["roll"].presliding_force == 2 * roll.presliding_force
+    assert drawn["roll"].coulomb == pytest.approx(roll.coulomb + 2 * roll.presliding_force, rel=1e-12)
+
+
+def test_standard_errors_from_identify_output(tmp_path, params):
+    path = tmp_path / "identify.json"
+    path.write_text(json.dumps({"standard_errors": {"roll": {"viscous": 0.08, "presliding_force": None}},
+                                "jackknife_standard_errors": {"roll": {"viscous": 1.3, "presliding_force": 0.58}}}))
+    errors = read_standard_errors(path)
+    assert errors == {"drive_train.roll.viscous": (1.3, "jackknife"),
+                      "drive_train.roll.presliding_force": (0.58, "jackknife")}
+    uncertain = {u.name: u for u in uncertain_parameters(params, errors)}
+    assert (uncertain["drive_train.roll.viscous"].sigma, uncertain["drive_train.roll.viscous"].source) == \
+        (1.3, "jackknife")
+    assert uncertain["drive_train.roll.coulomb"].source.startswith("default")
+    path.write_text(json.dumps({"standard_errors": {"roll": {"viscous": 0.08}}, "jackknife_standard_errors": {}}))
+    assert read_standard_errors(path) == {"drive_train.roll.viscous": (0.08, "gauss-newton")}
+
+
+# --- statistics ----------------------------------------------------------------------------------
+
+def _percentile(values, q):
+    """Linear interpolation between order statistics, by hand."""
+    v = sorted(values)
+    position = (len(v) - 1) * q / 100
+    lo = int(np.floor(position))
+    hi = min(lo + 1, len(v) - 1)
+    return v[lo] + (position - lo) * (v[hi] - v[lo])
+
+
+def test_statistics_against_a_hand_computation(study):
+    rng = np.random.default_rng(1)
+    n = 11
+    max_error = rng.uniform(0.5, 3.0, (n, 2, 2))
+    mean_error = max_error * rng.uniform(0.1, 0.5, (n, 2, 2))
+    diverged = np.zeros((n, 2), dtype=bool)
+    diverged[[2, 7], 1] = True
+    max_error[diverged], mean_error[diverged] = np.nan, np.nan
+    saturated = rng.uniform(size=(n, 2, 2)) < 0.4
+    max_real = rng.uniform(-5, 0.5, (n, 2))
+    radius = rng.uniform(0.95, 1.02, (n, 2))
+    outcomes = [SampleOutcome(i, np.zeros(0), max_error[i], mean_error[i], saturated[i], diverged[i], max_real[i],
+                              radius[i]) for i in reversed(range(n))]            # any order in
+    result = summarise(study, 0, outcomes)
+    assert [o.index for o in result.outcomes] == list(range(n))
+    for c, name in enumerate(study.controllers):
+        r = result.controllers[name]
+        ok = ~diverged[:, c]
+        assert r.unstable_fraction == pytest.approx(diverged[:, c].sum() / n, abs=1e-15)
+        for a, axis in enumerate(("roll", "pitch")):
+            for got, table in ((r.axes[axis].max_error_deg, max_error), (r.axes[axis].mean_error_deg, mean_error)):
+                kept = list(table[ok, c, a])
+                assert [got.p5, got.median, got.p95, got.worst] == pytest.approx(
+                    [_percentile(kept, 5), _percentile(kept, 50), _percentile(kept, 95), max(kept)], rel=1e-12)
+            assert r.axes[axis].saturated_fraction == pytest.approx(saturated[:, c, a].sum() / n, abs=1e-15)
+        assert r.firmware_spectral_radius.worst == radius[:, c].max()
+        assert r.firmware_unstable_fraction == pytest.approx(np.count_nonzero(radius[:, c] >= 1) / n, abs=1e-15)
+        assert r.continuous_unstable_fraction == pytest.approx(np.count_nonzero(max_real[:, c] >= 0) / n, abs=1e-15)
+        assert r.continuous_max_real.median == pytest.approx(_percentile(list(max_real[:, c]), 50), rel=1e-12)
+
+
+def test_spread_of_nothing_is_nan_and_becomes_null_in_json():
+    s = spread([np.nan, np.nan])
+    assert all(np.isnan(v) for v in vars(s).values())
+
+
+def test_batches_cover_the_samples_in_order():
+    items = list(range(10))
+    assert batches_of(items, 3) == [[0, 1, 2], [3, 4, 5], [6, 7, 8], [9]]
+
+
+# --- the simulation task ---------------------------------------------------------------------------
+
+def test_a_sample_is_the_simulator_on_the_drawn_set(study, serial):
+    """Sample 0 against ``run_experiment`` with the drawn parameters and the nominal schedule."""
+    from rcm_kin.simulation.controllers import make_controller
+    from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule
+    from rcm_kin.simulation.loop import simulate, tracking_metrics
+    from rcm_kin.simulation.plant import drive_train_plant
+    from rcm_kin.robot import load_robot
+
+    seed = sample_seeds(SEED, SAMPLES)[0]
+    drawn = with_values(study.params, study.uncertain, draw(study.uncertain, seed))
+    plant = drive_train_plant(load_robot("psm"), drawn, 0.0025)
+    _, schedule = psm_plant_and_schedule(study.params)
+    run = simulate(plant.step, make_controller("scheduled", schedule), experiment_reference("sine", 0.0025, DURATION),
+                   initial=plant.initial)
+    metrics = tracking_metrics(run)
+    outcome = serial.outcomes[0]
+    assert outcome.max_error_deg[1] == pytest.approx([metrics["roll"].max_error_deg, metrics["pitch"].max_error_deg],
+                                                     rel=1e-12)
+    # the drawn plant differs from the nominal one: sample 0 is not the nominal run
+    nominal_plant, _ = psm_plant_and_schedule(study.params)
+    nominal = tracking_metrics(simulate(nominal_plant.step, make_controller("scheduled", schedule),
+                                        experiment_reference("sine", 0.0025, DURATION), initial=nominal_plant.initial))
+    assert nominal["roll"].max_error_deg != outcome.max_error_deg[1, 0]
+
+
+# --- Dask: the same answer on any cluster ------------------------------------------------------------
+
+def _environment() -> dict:
+    """This process's environment with the rcm_kin under test first on the workers' path."""
+    source = str(Path(rcm_kin.__file__).resolve().parents[1])
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
+    env["PYTHONPATH"] = os.pathsep.join([source] + [p for p in [os.environ.get("PYTHONPATH")] if p])
+    return env
+
+
+class ExternalCluster:
+    """``dask scheduler`` and two ``dask worker --no-nanny`` processes on 127.0.0.1."""
+
+    def __init__(self, folder: Path, workers: int = 2):
+        env = _environment()
+        file = folder / "scheduler.json"
+        dask = [sys.executable, "-m", "dask"]
+        quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "env": env}
+        self.scheduler = subprocess.Popen(dask + ["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                                  "--scheduler-file", str(file)], **quiet)
+        deadline = time.monotonic() + 60
+        while not file.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(0.2)
+        self.address = json.loads(file.read_text())["address"]
+        self.workers = [subprocess.Popen(dask + ["worker", self.address, "--nthreads", "1", "--no-nanny",
+                                                 "--no-dashboard", "--host", "127.0.0.1", "--name", f"w{k}"], **quiet)
+                        for k in range(workers)]
+
+    def close(self):
+        for p in self.workers + [self.scheduler]:
+            if p.poll() is None:
+                p.terminate()
+        for p in self.workers + [self.scheduler]:
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+@pytest.fixture
+def cluster(tmp_path):
+    c = ExternalCluster(tmp_path)
+    yield c
+    c.close()
+
+
+def _wait_for_workers(client, n: int):
+    client.wait_for_workers(n, timeout=90)
+
+
+def test_embedded_and_external_clusters_give_the_same_json(cluster, serial, capsys):
+    assert main(ARGS + ["--workers", "2"]) == 0
+    embedded = capsys.readouterr().out
+    from distributed import Client
+
+    with Client(cluster.address) as client:
+        _wait_for_workers(client, 2)
+    assert main(ARGS + ["--scheduler", cluster.address]) == 0
+    external = capsys.readouterr().out
+    assert external == embedded
+    payload = json.loads(embedded)
+    assert payload["samples"] == SAMPLES
+    assert set(payload["controllers"]) == set(CONTROLLERS)
+    assert set(payload["controllers"]["p"]["roll"]["max_error_deg"]) == {"p5", "median", "p95", "worst"}
+    # and both are the serial computation's
+    expected = json.loads(json.dumps(serial.as_dict()))
+    assert payload == expected
+
+
+def test_a_killed_worker_does_not_change_the_answer(cluster, study, serial):
+    from distributed import Client
+
+    samples = 6
+    expected = summarise(study, SEED, run_batch(study, list(enumerate(sample_seeds(SEED, samples))))).as_dict()
+    killed = []
+    pids = {p.pid: p for p in cluster.workers}
+
+    def kill_one(done: int):
+        if killed:
+            return
+        busy = [w for w, tasks in client.processing().items() if tasks]
+        if not busy:
+            return
+        pid = client.run(os.getpid, workers=busy[:1])[busy[0]]
+        assert pid in pids                                  # one of the processes this test started
+        os.kill(pid, signal.SIGKILL)
+        pids[pid].wait(timeout=20)
+        killed.append(done)
+
+    with Client(cluster.address) as client:
+        _wait_for_workers(client, 2)
+        result = run_robustness(study, samples, SEED, client, batch_size=1, progress=False, on_batch=kill_one)
+        assert len(client.nthreads()) == 1
+    assert killed and killed[0] < samples                   # killed while batches were left
+    assert result.as_dict() == expected
+
+
+def test_cli_errors_are_one_line(capsys):
+    assert main(["robustness", "psm", "--controller", "p", "--experiment", "sine", "--samples", "0"]) == 2
+    assert capsys.readouterr().err == "error: --samples must be at least 1, got 0\n"
+    assert main(["robustness", "mtm", "--controller", "p", "--experiment", "sine", "--samples", "2"]) == 2
+    assert capsys.readouterr().err.startswith("error: ")
