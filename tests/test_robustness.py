@@ -247,7 +247,7 @@ def _wait_for_workers(client, n: int):
     client.wait_for_workers(n, timeout=90)
 
 
-def test_embedded_and_external_clusters_give_the_same_json(cluster, serial, capsys):
+def test_embedded_and_external_clusters_give_the_same_json(cluster, serial, capsys, tmp_path):
     assert main(ARGS + ["--workers", "2"]) == 0
     embedded = capsys.readouterr().out
     from distributed import Client
@@ -264,6 +264,12 @@ def test_embedded_and_external_clusters_give_the_same_json(cluster, serial, caps
     # and both are the serial computation's
     expected = json.loads(json.dumps(serial.as_dict()))
     assert payload == expected
+    # a sweep on the same external cluster
+    assert main(["sweep", "psm", "counterweights", "--main-mass", "2", "3", "--dpm-mass", "1.65", "--points", "5",
+                 "--scheduler", cluster.address, "--out", str(tmp_path), "--json"]) == 0
+    sweep = json.loads(capsys.readouterr().out)
+    assert [r["main_mass_kg"] for r in sweep["rows"]] == [2.0, 3.0]
+    assert Path(sweep["table"]).is_file() and Path(sweep["figure"]).is_file()
 
 
 def test_a_killed_worker_does_not_change_the_answer(cluster, study, serial):
@@ -299,3 +305,19 @@ def test_cli_errors_are_one_line(capsys):
     assert capsys.readouterr().err == "error: --samples must be at least 1, got 0\n"
     assert main(["robustness", "mtm", "--controller", "p", "--experiment", "sine", "--samples", "2"]) == 2
     assert capsys.readouterr().err.startswith("error: ")
+
+
+# --- design sweeps ----------------------------------------------------------------------------------
+
+def test_counterweight_sweep_row_is_the_osmdv_design(params, tmp_path):
+    from rcm_kin.hardware import DPM_COUNTERWEIGHT, MAIN_COUNTERWEIGHT
+    from rcm_kin.robustness.sweeps import counterweight_batch, write_table
+    from rcm_kin.statics.counterweights import osmdv_designs
+
+    row, = counterweight_batch([(MAIN_COUNTERWEIGHT[0], DPM_COUNTERWEIGHT[0])], params, points=7)
+    design = osmdv_designs(params, points=7).roll_and_pitch
+    assert [row.main_distance_m, row.dpm_distance_m, row.rms_pwm_roll, row.rms_pwm_pitch] == pytest.approx(
+        [design.main_distance, design.dpm_distance, *design.rms_pwm], rel=1e-12)
+    table = write_table([row], tmp_path / "t.csv").read_text().splitlines()
+    assert table[0].split(",")[:2] == ["main_mass_kg", "dpm_mass_kg"]
+    assert float(table[1].split(",")[5]) == row.rms_pwm_roll

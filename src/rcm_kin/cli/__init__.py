@@ -17,7 +17,8 @@ from rcm_kin.errors import RcmKinError
 COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
             statics.add_gravity, statics.add_torque_map, statics.add_calibrate,
             control.add_dynamics, control.add_linearize, control.add_schedule,
-            simulation.add_simulate, robustness.add_robustness, identification.add_sysid, identification.add_greybox,
+            simulation.add_simulate, robustness.add_robustness, robustness.add_sweep,
+            identification.add_sysid, identification.add_greybox,
             drive_train.add_identify, drive_train.add_predict, drive_train.add_excite,
             views.add_view, safety.add_safety, views.add_report)
 

@@ -87,3 +87,60 @@ def cmd_robustness(args) -> None:
 
         lines.append(f"wrote {robustness_figure(result, out / f'robustness_{args.experiment}.png')}")
     emit(args, result.as_dict(), "\n".join(lines))
+
+
+def add_sweep(sub) -> None:
+    from rcm_kin.hardware import DPM_COUNTERWEIGHT, MAIN_COUNTERWEIGHT
+
+    p = sub.add_parser("sweep", help="design sweeps (counterweights, LQR/LQI budgets): a table and a trade-off figure",
+                       parents=[psm_robot()], epilog=EPILOG_SWEEP, formatter_class=RAW)
+    p.add_argument("design", choices=("counterweights", "weights"),
+                   help="counterweights: masses against holding effort over the workspace; weights: LQR/LQI budgets "
+                        "against tracking and PWM use on the sinusoid")
+    p.add_argument("--main-mass", nargs="+", type=float, default=[MAIN_COUNTERWEIGHT[0] * f for f in (0.5, 0.75, 1, 1.25)],
+                   help="counterweights: main counterweight masses, kg (default: 0.5-1.25 x osMDV's)")
+    p.add_argument("--dpm-mass", nargs="+", type=float, default=[DPM_COUNTERWEIGHT[0] * f for f in (0.5, 1, 1.5)],
+                   help="counterweights: DPM counterweight masses, kg (default: 0.5-1.5 x osMDV's)")
+    p.add_argument("--points", type=int, default=13, help="counterweights: workspace grid points per axis (13)")
+    p.add_argument("--error-deg", nargs="+", type=float, default=[0.5, 1.0, 2.0, 4.0],
+                   help="weights: roll and pitch error budgets, deg (default 0.5 1 2 4)")
+    p.add_argument("--pwm-fraction", nargs="+", type=float, default=[0.5, 1.0],
+                   help="weights: PWM budgets as fractions of the firmware limits (default 0.5 1)")
+    p.add_argument("--duration", type=float, help="weights: simulated seconds of the sinusoid (default 6)")
+    add_params(p)
+    add_scheduler(p)
+    p.add_argument("--out", metavar="DIR", required=True, help="folder for sweep_<design>.csv and .png")
+    add_json(p, '{"design", "rows": [{column: value}], "table", "figure"}')
+    p.set_defaults(func=cmd_sweep)
+
+
+def cmd_sweep(args) -> None:
+    from dataclasses import asdict
+    from itertools import product
+
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.robustness import figures, sweeps
+    from rcm_kin.robustness.execution import dask_client, map_batches
+
+    require_psm(args, "the design sweeps are of the PSM, not '{robot}'")
+    params = load_drive_parameters(args.params)
+    if args.design == "counterweights":
+        if min(args.main_mass + args.dpm_mass) <= 0 or args.points < 2:
+            raise RcmKinError("counterweight masses must be positive (kg) and --points at least 2")
+        points, task, shared = list(product(args.main_mass, args.dpm_mass)), sweeps.counterweight_batch, \
+            {"params": params, "points": args.points}
+    else:
+        if min(args.error_deg + args.pwm_fraction) <= 0:
+            raise RcmKinError("--error-deg and --pwm-fraction must be positive")
+        points, task, shared = list(product(args.error_deg, args.pwm_fraction)), sweeps.weights_batch, \
+            {"params": params, "duration": args.duration}
+    out = output_folder(args.out)
+    with dask_client(args.scheduler, args.workers) as client:
+        batches = [[point] for point in points]
+        rows = [row for batch in map_batches(client, task, batches, sys.stderr.isatty(), f"sweep {args.design}",
+                                             **shared) for row in batch]
+    table = sweeps.write_table(rows, out / f"sweep_{args.design}.csv")
+    draw = figures.counterweight_figure if args.design == "counterweights" else figures.weights_figure
+    figure = draw(rows, out / f"sweep_{args.design}.png")
+    payload = {"design": args.design, "rows": [asdict(r) for r in rows], "table": str(table), "figure": str(figure)}
+    emit(args, payload, f"{len(rows)} {args.design} designs\nwrote {table}\nwrote {figure}")

@@ -54,3 +54,37 @@ def robustness_figure(result: Robustness, path: str | Path) -> Path:
     axes[0].legend(fontsize=8)
     fig.suptitle(f"{result.experiment}: {result.samples} samples of the parameter uncertainty (seed {result.seed})")
     return save(fig, Path(path))
+
+
+def counterweight_figure(rows, path: str | Path) -> Path:
+    """RMS holding PWM of roll and pitch against the main counterweight's mass, a curve per DPM
+    counterweight mass (rows: :class:`~rcm_kin.robustness.sweeps.CounterweightRow`)."""
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained", sharey=True)
+    for dpm in sorted({r.dpm_mass_kg for r in rows}):
+        line = sorted((r for r in rows if r.dpm_mass_kg == dpm), key=lambda r: r.main_mass_kg)
+        for ax, field in zip(axes, ("rms_pwm_roll", "rms_pwm_pitch")):
+            ax.plot([r.main_mass_kg for r in line], [getattr(r, field) for r in line], "o-", label=f"DPM {dpm:g} kg")
+    for ax, joint in zip(axes, ("roll", "pitch")):
+        ax.set(xlabel="main counterweight (kg)", title=f"{joint}: RMS holding PWM over the workspace")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("PWM counts (RMS)")
+    axes[1].legend(fontsize=8)
+    fig.suptitle("counterweights positioned for least holding effort: added mass against effort left")
+    return save(fig, Path(path))
+
+
+def weights_figure(rows, path: str | Path) -> Path:
+    """Largest tracking error against RMS PWM per axis, a point per LQR/LQI budget pair, labelled
+    (rows: :class:`~rcm_kin.robustness.sweeps.WeightsRow`)."""
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained")
+    for ax, joint in zip(axes, ("roll", "pitch")):
+        x = [getattr(r, f"rms_pwm_{joint}") for r in rows]
+        y = [getattr(r, f"max_error_{joint}_deg") for r in rows]
+        ax.scatter(x, y, c=[r.spectral_radius for r in rows], cmap="viridis")
+        for r, xi, yi in zip(rows, x, y):
+            ax.annotate(f"{r.error_budget_deg:g} deg/{r.pwm_fraction:g}", (xi, yi), fontsize=7,
+                        textcoords="offset points", xytext=(3, 3))
+        ax.set(xlabel="RMS PWM (counts)", ylabel="largest error (deg)", title=joint)
+        ax.grid(alpha=0.3)
+    fig.suptitle("LQR/LQI budgets (error budget / PWM fraction): tracking against PWM use; colour: 400 Hz radius")
+    return save(fig, Path(path))
