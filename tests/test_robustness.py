@@ -238,7 +238,15 @@ class ExternalCluster:
 
 @pytest.fixture
 def cluster(tmp_path):
+    """A cluster of the test's own (the kill test stops one of its workers)."""
     c = ExternalCluster(tmp_path)
+    yield c
+    c.close()
+
+
+@pytest.fixture(scope="module")
+def shared_cluster(tmp_path_factory):
+    c = ExternalCluster(tmp_path_factory.mktemp("dask"))
     yield c
     c.close()
 
@@ -247,7 +255,8 @@ def _wait_for_workers(client, n: int):
     client.wait_for_workers(n, timeout=90)
 
 
-def test_embedded_and_external_clusters_give_the_same_json(cluster, serial, capsys, tmp_path):
+def test_embedded_and_external_clusters_give_the_same_json(shared_cluster, serial, capsys, tmp_path):
+    cluster = shared_cluster
     assert main(ARGS + ["--workers", "2"]) == 0
     embedded = capsys.readouterr().out
     from distributed import Client
@@ -321,3 +330,21 @@ def test_counterweight_sweep_row_is_the_osmdv_design(params, tmp_path):
     table = write_table([row], tmp_path / "t.csv").read_text().splitlines()
     assert table[0].split(",")[:2] == ["main_mass_kg", "dpm_mass_kg"]
     assert float(table[1].split(",")[5]) == row.rms_pwm_roll
+
+
+def test_report_section(shared_cluster, tmp_path):
+    """The report's robustness section on the external cluster: a row per controller and axis, the
+    figure linked relatively, the uncertainty table."""
+    from distributed import Client
+
+    from rcm_kin.report.render import render_section
+    from rcm_kin.report.sections.robustness import robustness_section
+
+    with Client(shared_cluster.address) as client:
+        _wait_for_workers(client, 2)
+        s = robustness_section(tmp_path, samples=2, duration=0.75, controllers=CONTROLLERS, client=client)
+    assert [row[:2] for row in s.table.rows] == [(c, a) for c in CONTROLLERS for a in ("roll", "pitch")]
+    assert any(row[0] == "drive_train.roll.viscous" for row in s.uncertainty.rows)
+    html = render_section(s)
+    assert f'src="{s.figure}"' in html and s.figure == "robustness/robustness_sine.png"
+    assert (tmp_path / s.figure).stat().st_size > 0 and str(tmp_path) not in html

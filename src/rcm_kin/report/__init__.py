@@ -5,7 +5,8 @@ Sections (one module each in :mod:`rcm_kin.report.sections`, one template each i
 self-checks, holding-effort maps with the thesis Fig 4.6/4.7 curves, the drive parameters and
 the counterweight designs, the linear models per grid pose, the model-based gain schedule
 beside the thesis's tables, the thesis's tracking experiments (P against the scheduled
-controller) with animations, and the safety filters and certificates. With a data folder:
+controller) with animations, the controllers' robustness to the parameter uncertainty (a small
+Monte Carlo on an embedded Dask cluster), and the safety filters and certificates. With a data folder:
 calibration, identification per pose, the grey-box fit, and the identified drive train against
 every step log (each also left out of the fit) on the measured logs.
 
@@ -33,6 +34,7 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     from rcm_kin.report.sections.measured import measured_section
     from rcm_kin.report.sections.models import models_section
     from rcm_kin.report.sections.robots import robots_section
+    from rcm_kin.report.sections.robustness import robustness_section
     from rcm_kin.report.sections.safety import safety_section
     from rcm_kin.report.sections.schedule import schedule_section
     from rcm_kin.report.sections.tracking import tracking_section
@@ -42,7 +44,7 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     if data is not None and not Path(data).is_dir():
         raise RcmKinError(f"no data folder at {data}")
     out = output_folder(out)
-    with tqdm(total=8 if data is None else 9, desc="report", unit="step", disable=not progress) as bar:
+    with tqdm(total=9 if data is None else 10, desc="report", unit="step", disable=not progress) as bar:
         def step(name: str) -> None:
             bar.set_postfix_str(name)
             bar.update()
@@ -59,7 +61,9 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
         step("linear models")
         tracking = tracking_section(out, schedule.schedule, _mtm_recording(data))
         step("tracking experiments")
-        sections = [robots, models, gravity, linear, schedule, tracking, safety_section(out)]
+        robustness = robustness_section(out)
+        step("robustness")
+        sections = [robots, models, gravity, linear, schedule, tracking, robustness, safety_section(out)]
         step("safety")
         if data is not None:
             sections.append(measured_section(out, Path(data)))
