@@ -18,7 +18,7 @@ import pytest
 import rcm_kin
 from rcm_kin.cli import main
 from rcm_kin.dynamics.drive import DRIVEN, load_drive_parameters
-from rcm_kin.robustness.execution import batches_of, dask_client, run_robustness
+from rcm_kin.robustness.execution import batches_of, run_robustness
 from rcm_kin.robustness.sampling import (DEFAULT_RELATIVE_SPREAD, draw, read_standard_errors, sample_seeds,
                                          uncertain_parameters, with_values)
 from rcm_kin.robustness.statistics import spread, summarise
@@ -80,7 +80,8 @@ def test_uncertain_parameters_of_the_shipped_set(params):
     assert "drive_train.roll.stribeck_velocity" not in uncertain      # stiction is off: its velocity does nothing
     assert "drive_train.roll.cable_stiffness" not in uncertain        # 0: no scale
     assert "roll.coulomb" not in uncertain                             # follows the drive train
-    assert uncertain["pitch.coulomb"].sigma == pytest.approx(DEFAULT_RELATIVE_SPREAD["friction"] * params["pitch"].coulomb)
+    pitch = params["pitch"].coulomb
+    assert uncertain["pitch.coulomb"].sigma == pytest.approx(DEFAULT_RELATIVE_SPREAD["friction"] * pitch, rel=1e-12)
 
 
 def test_nominal_values_give_back_the_nominal_set(params):
@@ -314,6 +315,10 @@ def test_cli_errors_are_one_line(capsys):
     assert capsys.readouterr().err == "error: --samples must be at least 1, got 0\n"
     assert main(["robustness", "mtm", "--controller", "p", "--experiment", "sine", "--samples", "2"]) == 2
     assert capsys.readouterr().err.startswith("error: ")
+    assert main(ARGS + ["--skip", "1"]) == 2                 # the statistics would start after the run
+    assert capsys.readouterr().err.startswith("error: the statistics start within the run")
+    assert main(ARGS + ["--scheduler", "tcp://127.0.0.1:1", "--workers", "2"]) == 2
+    assert capsys.readouterr().err.startswith("error: --workers sizes the embedded cluster")
 
 
 # --- design sweeps ----------------------------------------------------------------------------------

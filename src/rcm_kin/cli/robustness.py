@@ -67,6 +67,8 @@ def cmd_robustness(args) -> None:
         raise RcmKinError(f"--samples must be at least 1, got {args.samples}")
     if args.workers is not None and args.workers < 1:
         raise RcmKinError(f"--workers must be at least 1, got {args.workers}")
+    if args.workers is not None and args.scheduler:
+        raise RcmKinError("--workers sizes the embedded cluster; a --scheduler's cluster has its own workers")
     if args.batch_size is not None and args.batch_size < 1:
         raise RcmKinError(f"--batch-size must be at least 1, got {args.batch_size}")
     params = load_drive_parameters(args.params)
@@ -78,7 +80,8 @@ def cmd_robustness(args) -> None:
         result = run_robustness(study, args.samples, args.seed, client, args.batch_size, progress=sys.stderr.isatty())
     lines = [f"{args.experiment}: {result.samples} samples (seed {args.seed}); max error deg p5/median/p95/worst"]
     for name, c in result.controllers.items():
-        cells = [f"{axis} " + "/".join(f"{v:.2f}" for v in vars(a.max_error_deg).values()) for axis, a in c.axes.items()]
+        cells = [f"{axis} " + "/".join(f"{v:.2f}" for v in vars(a.max_error_deg).values())
+                 for axis, a in c.axes.items()]
         radius = (f"400 Hz radius median {c.firmware_spectral_radius.median:.4f} worst "
                   f"{c.firmware_spectral_radius.worst:.4f}" if c.has_margin else "no linear margin")
         lines.append(f"  {name:20} {'  '.join(cells)}  diverged {c.unstable_fraction:.0%}  {radius}")
@@ -97,7 +100,8 @@ def add_sweep(sub) -> None:
     p.add_argument("design", choices=("counterweights", "weights"),
                    help="counterweights: masses against holding effort over the workspace; weights: LQR/LQI budgets "
                         "against tracking and PWM use on the sinusoid")
-    p.add_argument("--main-mass", nargs="+", type=float, default=[MAIN_COUNTERWEIGHT[0] * f for f in (0.5, 0.75, 1, 1.25)],
+    p.add_argument("--main-mass", nargs="+", type=float,
+                   default=[MAIN_COUNTERWEIGHT[0] * f for f in (0.5, 0.75, 1, 1.25)],
                    help="counterweights: main counterweight masses, kg (default: 0.5-1.25 x osMDV's)")
     p.add_argument("--dpm-mass", nargs="+", type=float, default=[DPM_COUNTERWEIGHT[0] * f for f in (0.5, 1, 1.5)],
                    help="counterweights: DPM counterweight masses, kg (default: 0.5-1.5 x osMDV's)")

@@ -62,6 +62,10 @@ class Study:
         if unknown or not self.controllers:
             raise RcmKinError(f"unknown controller(s) {', '.join(unknown) or '(none given)'} "
                               f"(choose from {', '.join(CONTROLLERS)})")
+        long_enough = self.duration is None or (np.isfinite(self.duration) and self.duration > self.skip)
+        if not (np.isfinite(self.skip) and self.skip >= 0 and long_enough):
+            raise RcmKinError(f"the statistics start within the run: 0 <= skip < duration, got skip {self.skip} s and "
+                              f"duration {self.duration} s")
         if self.survey_points < 2:
             raise RcmKinError(f"the stability grid needs at least 2 points per axis, got {self.survey_points}")
 
