@@ -140,8 +140,9 @@ def test_statistics_against_a_hand_computation(study):
     saturated = rng.uniform(size=(n, 2, 2)) < 0.4
     max_real = rng.uniform(-5, 0.5, (n, 2))
     radius = rng.uniform(0.95, 1.02, (n, 2))
+    damping = rng.uniform(-0.1, 0.7, (n, 2))
     outcomes = [SampleOutcome(i, np.zeros(0), max_error[i], mean_error[i], saturated[i], diverged[i], max_real[i],
-                              radius[i]) for i in reversed(range(n))]            # any order in
+                              radius[i], damping[i]) for i in reversed(range(n))]            # any order in
     result = summarise(study, 0, outcomes)
     assert [o.index for o in result.outcomes] == list(range(n))
     for c, name in enumerate(study.controllers):
@@ -158,6 +159,8 @@ def test_statistics_against_a_hand_computation(study):
         assert r.firmware_unstable_fraction == pytest.approx(np.count_nonzero(radius[:, c] >= 1) / n, abs=1e-15)
         assert r.continuous_unstable_fraction == pytest.approx(np.count_nonzero(max_real[:, c] >= 0) / n, abs=1e-15)
         assert r.continuous_max_real.median == pytest.approx(_percentile(list(max_real[:, c]), 50), rel=1e-12)
+        d = r.firmware_min_damping                   # less is worse: its worst is the least
+        assert [d.p5, d.worst] == pytest.approx([_percentile(list(damping[:, c]), 5), min(damping[:, c])], rel=1e-12)
 
 
 def test_spread_of_nothing_is_nan_and_becomes_null_in_json():
@@ -195,6 +198,43 @@ def test_a_sample_is_the_simulator_on_the_drawn_set(study, serial):
     nominal = tracking_metrics(simulate(nominal_plant.step, make_controller("scheduled", schedule),
                                         experiment_reference("sine", 0.0025, DURATION), initial=nominal_plant.initial))
     assert nominal["roll"].max_error_deg != outcome.max_error_deg[1, 0]
+
+
+def test_loop_margins_are_the_stability_survey(params):
+    """With integral action the margins are ``stability_survey``'s (the project's survey, same grid)."""
+    from rcm_kin.control.stability import stability_survey
+    from rcm_kin.robot import load_robot
+    from rcm_kin.robustness.task import linear_law, loop_margins
+    from rcm_kin.simulation.experiments import psm_plant_and_schedule
+    from rcm_kin.dynamics.state_space import driven_dynamics
+
+    model = driven_dynamics(load_robot("psm"), params, coulomb=False)
+    _, schedule = psm_plant_and_schedule(params)
+    for name in ("scheduled", "thesis"):
+        law = linear_law(name, schedule)
+        survey = stability_survey(model, schedule, 3, gains=law)
+        assert loop_margins(model, schedule, law, 3) == pytest.approx(
+            (survey.max_real.max(), survey.spectral_radius.max(), survey.min_damping.min()), rel=1e-12)
+
+
+def test_a_loop_without_integral_loses_only_the_integrator_mode(params):
+    """P: the loops' eigenvalues are those of the reduced loops plus the integrator's 0 (s) and 1 (z)."""
+    from rcm_kin.control.gain_schedule import closed_loop_matrix
+    from rcm_kin.control.linearization import linearize_grid
+    from rcm_kin.control.stability import firmware_loop_matrix
+    from rcm_kin.dynamics.state_space import driven_dynamics
+    from rcm_kin.robot import load_robot
+    from rcm_kin.robustness.task import linear_law
+
+    model = driven_dynamics(load_robot("psm"), params, coulomb=False)
+    grid = linearize_grid(model, [[0.2, -0.1, 0.08]])
+    k_roll, k_pitch = linear_law("p", None)(0.0, 0.0)
+    for matrix, keep, mode in ((closed_loop_matrix, 6, 0.0), (firmware_loop_matrix, 9, 1.0)):
+        full = matrix(grid.A[0], grid.B[0], k_roll, k_pitch)
+        reduced = np.linalg.eigvals(full[:keep, :keep])
+        assert np.all(full[:keep, keep] == 0)                  # nothing depends on the integral
+        together = np.sort_complex(np.r_[reduced, mode])
+        assert np.allclose(np.sort_complex(np.linalg.eigvals(full)), together, atol=1e-9)
 
 
 # --- Dask: the same answer on any cluster ------------------------------------------------------------

@@ -45,7 +45,8 @@ def robustness_figure(result: Robustness, path: str | Path) -> Path:
         if np.isfinite(radius).any():
             axes[2].step(*ecdf(radius), where="post", label=name)
     for a, title in enumerate(("roll", "pitch")):
-        axes[a].set(xlabel=f"largest {title} error (deg)", ylabel="fraction of samples", title=title)
+        axes[a].set(xlabel=f"largest {title} error (deg, log scale)", ylabel="fraction of samples", title=title,
+                    xscale="log")
     axes[2].axvline(1.0, color="k", lw=0.8, ls=":")
     axes[2].set(xlabel="spectral radius of the 400 Hz loop (worst pose)", ylabel="fraction of samples",
                 title="linear stability (< 1: stable)")

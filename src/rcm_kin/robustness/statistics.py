@@ -1,7 +1,7 @@
 """The distributions over the samples of a robustness run, per controller and axis.
 
 Percentiles are NumPy's default (linear interpolation between order statistics); ``worst`` is
-the largest value (for every figure here, larger is worse). Error statistics are taken over the
+the largest value, but for the damping ratio, where it is the smallest. Error statistics are taken over the
 samples whose run did not diverge (a diverged run has no error to speak of: it counts in
 ``unstable_fraction``); a figure no sample has is NaN (``null`` in JSON).
 
@@ -32,20 +32,21 @@ class Spread:
     p5: float
     median: float
     p95: float
-    worst: float                 # the largest
+    worst: float                 # the largest (the smallest for a figure where less is worse)
 
     def as_dict(self) -> dict:
         return {"p5": self.p5, "median": self.median, "p95": self.p95, "worst": self.worst}
 
 
-def spread(values) -> Spread:
-    """:class:`Spread` of the finite ``values`` (all NaN when there are none)."""
+def spread(values, worst=np.max) -> Spread:
+    """:class:`Spread` of the finite ``values`` (all NaN when there are none); ``worst`` picks the
+    worst of them (``np.max``, or ``np.min`` where less is worse)."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if v.size == 0:
         return Spread(np.nan, np.nan, np.nan, np.nan)
     p5, median, p95 = np.percentile(v, [5.0, 50.0, 95.0])
-    return Spread(float(p5), float(median), float(p95), float(v.max()))
+    return Spread(float(p5), float(median), float(p95), float(worst(v)))
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,7 @@ class ControllerRobustness:
     unstable_fraction: float               # the simulated run diverged (module notes)
     continuous_max_real: Spread            # 1/s, largest real part of the continuous loop over the grid
     firmware_spectral_radius: Spread       # largest |z| of the 400 Hz loop over the grid
+    firmware_min_damping: Spread           # least damping ratio of the 400 Hz loop's poles over the grid
     continuous_unstable_fraction: float    # max real part >= 0
     firmware_unstable_fraction: float      # spectral radius >= 1
     has_margin: bool                       # False: a law the linear survey does not model (PID)
@@ -74,6 +76,7 @@ class ControllerRobustness:
         out["unstable_fraction"] = self.unstable_fraction
         out["stability"] = ({"continuous_max_real": self.continuous_max_real.as_dict(),
                              "firmware_spectral_radius": self.firmware_spectral_radius.as_dict(),
+                             "firmware_min_damping": self.firmware_min_damping.as_dict(),
                              "continuous_unstable_fraction": self.continuous_unstable_fraction,
                              "firmware_unstable_fraction": self.firmware_unstable_fraction}
                             if self.has_margin else None)
@@ -108,10 +111,12 @@ def controller_robustness(outcomes: list[SampleOutcome], c: int) -> ControllerRo
     diverged = np.array([o.diverged[c] for o in outcomes])
     max_real = np.array([o.max_real[c] for o in outcomes])
     radius = np.array([o.spectral_radius[c] for o in outcomes])
+    damping = np.array([o.min_damping[c] for o in outcomes])
     axes = {axis: AxisRobustness(spread(max_error[:, a]), spread(mean_error[:, a]), float(saturated[:, a].mean()))
             for a, axis in enumerate(AXES)}
     has_margin = bool(np.all(np.isfinite(radius)))
     return ControllerRobustness(axes, float(diverged.mean()), spread(max_real), spread(radius),
+                                spread(damping, worst=np.min),
                                 float(np.mean(max_real >= 0)) if has_margin else np.nan,
                                 float(np.mean(radius >= 1)) if has_margin else np.nan, has_margin)
 

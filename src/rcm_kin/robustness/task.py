@@ -9,8 +9,9 @@ parameter set (:func:`rcm_kin.simulation.experiments.psm_plant_and_schedule`), a
 - the linear stability of the loop about every pose of a ``survey_points`` x ``survey_points``
   grid over the schedule's span (:func:`loop_margins`, on the drawn set's smooth model, Coulomb
   friction left out as the design does): the largest real part of the continuous closed loop
-  (:func:`rcm_kin.control.gain_schedule.closed_loop_matrix`) and the largest spectral radius of
-  the 400 Hz firmware loop (:func:`rcm_kin.control.stability.firmware_loop_matrix`). The PID's
+  (:func:`rcm_kin.control.gain_schedule.closed_loop_matrix`), the largest spectral radius of
+  the 400 Hz firmware loop (:func:`rcm_kin.control.stability.firmware_loop_matrix`) and the
+  smallest damping ratio of its poles (as ``stability_survey`` takes it). The PID's
   law (roll integral, derivative of the error) is not the firmware loop those model, so it has
   no margin (NaN).
 
@@ -28,12 +29,12 @@ import numpy as np
 from rcm_kin.control.gain_schedule import (THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, bilinear,
                                            closed_loop_matrix, scheduled_gains)
 from rcm_kin.control.linearization import linearize_grid
-from rcm_kin.control.stability import firmware_loop_matrix
+from rcm_kin.control.stability import damping_ratios, firmware_loop_matrix
 from rcm_kin.control.thesis_reference import K_PITCH, K_ROLL
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
 from rcm_kin.errors import RcmKinError
-from rcm_kin.hardware import P_GAINS
+from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS
 from rcm_kin.robot import load_robot
 from rcm_kin.robustness.sampling import Uncertain, draw, with_values
 from rcm_kin.simulation.controllers import CONTROLLERS, make_controller
@@ -83,6 +84,7 @@ class SampleOutcome:
     diverged: np.ndarray          # (n_controllers,) bool
     max_real: np.ndarray          # (n_controllers,) 1/s, continuous loop, worst pose (NaN: no linear law)
     spectral_radius: np.ndarray   # (n_controllers,) 400 Hz firmware loop, worst pose (NaN: no linear law)
+    min_damping: np.ndarray       # (n_controllers,) least damping ratio of the 400 Hz loop's poles, worst pose
 
 
 def linear_law(name: str, schedule: GainSchedule):
@@ -101,11 +103,13 @@ def linear_law(name: str, schedule: GainSchedule):
     return None
 
 
-def loop_margins(model: DrivenDynamics, schedule: GainSchedule, law, points: int) -> tuple[float, float]:
+def loop_margins(model: DrivenDynamics, schedule: GainSchedule, law, points: int) -> tuple[float, float, float]:
     """Worst linear stability of the loop under ``law`` (:func:`linear_law`) over a ``points`` x
     ``points`` roll x pitch grid spanning the schedule's, at its insertion: the largest real part
-    (1/s) of the continuous closed loop and the largest spectral radius of the 400 Hz firmware
-    loop. A law without integral action (pitch Ki 0) leaves the loops' error integral a mode
+    (1/s) of the continuous closed loop, the largest spectral radius of the 400 Hz firmware loop,
+    and the smallest damping ratio of the firmware loop's poles taken as ``s = ln(z) / T``
+    (:func:`rcm_kin.control.stability.damping_ratios`; its deadbeat modes, the stored previous
+    angles, left out). A law without integral action (pitch Ki 0) leaves the loops' error integral a mode
     nothing depends on (exactly 0 in s, 1 in z); it is left out, so a P loop is judged on its
     own modes."""
     rolls = np.linspace(schedule.roll_deg[0], schedule.roll_deg[-1], points)
@@ -113,15 +117,18 @@ def loop_margins(model: DrivenDynamics, schedule: GainSchedule, law, points: int
     R, P = np.meshgrid(rolls, pitches)
     Q = np.column_stack([np.radians(R.ravel()), np.radians(P.ravel()), np.full(R.size, schedule.insertion)])
     grid = linearize_grid(model, Q)
-    max_real, radius = -np.inf, 0.0
+    max_real, radius, damping = -np.inf, 0.0, np.inf
     for r, p, A, B in zip(R.ravel(), P.ravel(), grid.A, grid.B):
         k_roll, k_pitch = law(r, p)
         keep_s, keep_z = (slice(None), slice(None)) if k_pitch[2] else (slice(0, 6), slice(0, 9))
         closed = closed_loop_matrix(A, B, k_roll, k_pitch)[keep_s, keep_s]
         sampled = firmware_loop_matrix(A, B, k_roll, k_pitch)[keep_z, keep_z]
         max_real = max(max_real, float(np.linalg.eigvals(closed).real.max()))
-        radius = max(radius, float(np.abs(np.linalg.eigvals(sampled)).max()))
-    return max_real, radius
+        z = np.linalg.eigvals(sampled)
+        radius = max(radius, float(np.abs(z).max()))
+        z = z[np.abs(z) > 1e-9]
+        damping = min(damping, float(damping_ratios(np.log(z.astype(complex)) / FIRMWARE_PERIOD).min()))
+    return max_real, radius, damping
 
 
 @functools.lru_cache(maxsize=4)
@@ -151,7 +158,7 @@ def run_sample(study: Study, index: int, seed: np.random.SeedSequence) -> Sample
     n = len(study.controllers)
     max_error, mean_error = np.full((n, 2), np.nan), np.full((n, 2), np.nan)
     saturated, diverged = np.zeros((n, 2), dtype=bool), np.zeros(n, dtype=bool)
-    max_real, radius = np.full(n, np.nan), np.full(n, np.nan)
+    max_real, radius, damping = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
     for c, name in enumerate(study.controllers):
         try:
             result = simulate(plant.step, make_controller(name, schedule), reference, settings, initial=plant.initial)
@@ -167,8 +174,8 @@ def run_sample(study: Study, index: int, seed: np.random.SeedSequence) -> Sample
                 saturated[c, a] = m.saturation_s > 0
         law = linear_law(name, schedule)
         if law is not None:
-            max_real[c], radius[c] = loop_margins(model, schedule, law, study.survey_points)
-    return SampleOutcome(index, values, max_error, mean_error, saturated, diverged, max_real, radius)
+            max_real[c], radius[c], damping[c] = loop_margins(model, schedule, law, study.survey_points)
+    return SampleOutcome(index, values, max_error, mean_error, saturated, diverged, max_real, radius, damping)
 
 
 def run_batch(study: Study, batch: list[tuple[int, np.random.SeedSequence]]) -> list[SampleOutcome]:
