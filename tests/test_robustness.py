@@ -393,3 +393,19 @@ def test_report_section(shared_cluster, tmp_path):
     html = render_section(s)
     assert f'src="{s.figure}"' in html and s.figure == "robustness/robustness_sine.png"
     assert (tmp_path / s.figure).stat().st_size > 0 and str(tmp_path) not in html
+
+
+def test_weights_sweep_at_the_default_budgets_is_the_shipped_schedule(params):
+    """Budgets 2 deg / the full PWM limit are the default weights: the row is `simulate`'s scheduled run."""
+    from rcm_kin.control.weights import Weights
+    from rcm_kin.robustness.sweeps import budget_weights, weights_batch
+    from rcm_kin.simulation.experiments import run_experiment
+    from rcm_kin.simulation.loop import tracking_metrics
+
+    assert budget_weights(2.0, 1.0) == Weights()
+    row, = weights_batch([(2.0, 1.0)], params, duration=DURATION, points=2)
+    m = tracking_metrics(run_experiment("sine", "scheduled", DURATION, params))
+    assert [row.max_error_roll_deg, row.max_error_pitch_deg, row.rms_pwm_pitch] == pytest.approx(
+        [m["roll"].max_error_deg, m["pitch"].max_error_deg, m["pitch"].rms_pwm], rel=1e-12)
+    softer, = weights_batch([(4.0, 0.5)], params, duration=DURATION, points=2)
+    assert softer.rms_pwm_roll != row.rms_pwm_roll

@@ -101,7 +101,7 @@ def weights_batch(batch: list[tuple[float, float]], params: DriveParameters, exp
         schedule = schedule_gains(model, THESIS_ROLL_DEG, THESIS_PITCH_DEG, weights=budget_weights(error_deg, fraction))
         run = simulate(plant.step, make_controller("scheduled", schedule), reference, settings, initial=plant.initial)
         m = tracking_metrics(run)
-        _, radius = loop_margins(model, schedule, linear_law("scheduled", schedule), points)
+        _, radius, _ = loop_margins(model, schedule, linear_law("scheduled", schedule), points)
         rows.append(WeightsRow(error_deg, fraction, m["roll"].max_error_deg, m["pitch"].max_error_deg,
                                m["roll"].mean_error_deg, m["pitch"].mean_error_deg, m["roll"].rms_pwm,
                                m["pitch"].rms_pwm, radius))
