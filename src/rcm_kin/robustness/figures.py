@@ -10,6 +10,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -39,14 +40,18 @@ def robustness_figure(result: Robustness, path: str | Path) -> Path:
     radius over the samples, a curve per controller (the PID has no radius)."""
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), layout="constrained")
     for c, name in enumerate(result.controllers):
+        style = {"where": "post", "label": name, "color": f"C{c}"}
         for a, title in enumerate(("roll", "pitch")):
-            axes[a].step(*ecdf([o.max_error_deg[c, a] for o in result.outcomes]), where="post", label=name)
+            axes[a].step(*ecdf([o.max_error_deg[c, a] for o in result.outcomes]), **style)
         radius = [o.spectral_radius[c] for o in result.outcomes]
         if np.isfinite(radius).any():
-            axes[2].step(*ecdf(radius), where="post", label=name)
+            axes[2].step(*ecdf(radius), **style)
     for a, title in enumerate(("roll", "pitch")):
         axes[a].set(xlabel=f"largest {title} error (deg, log scale)", ylabel="fraction of samples", title=title,
                     xscale="log")
+        axes[a].xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+        axes[a].xaxis.set_major_formatter(FormatStrFormatter("%g"))
+        axes[a].xaxis.set_minor_formatter(NullFormatter())
     axes[2].axvline(1.0, color="k", lw=0.8, ls=":")
     axes[2].set(xlabel="spectral radius of the 400 Hz loop (worst pose)", ylabel="fraction of samples",
                 title="linear stability (< 1: stable)")
