@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 import rcm_kin
+from rcm_kin import RcmKinError
 from rcm_kin.cli import main
 from rcm_kin.dynamics.drive import DRIVEN, load_drive_parameters
 from rcm_kin.robustness.execution import batches_of, run_robustness
@@ -51,6 +52,8 @@ def serial(study):
 # --- draws -------------------------------------------------------------------------------------
 
 def test_sample_seeds_are_spawned_children():
+    with pytest.raises(RcmKinError, match="non-negative"):
+        sample_seeds(-1, 5)
     children = sample_seeds(3, 5)
     for i, child in enumerate(children):
         again = np.random.SeedSequence(3, spawn_key=(i,))
@@ -116,6 +119,9 @@ def test_standard_errors_from_identify_output(tmp_path, params):
     assert uncertain["drive_train.roll.coulomb"].source.startswith("default")
     path.write_text(json.dumps({"standard_errors": {"roll": {"viscous": 0.08}}, "jackknife_standard_errors": {}}))
     assert read_standard_errors(path) == {"drive_train.roll.viscous": (0.08, "gauss-newton")}
+    path.write_text(json.dumps({"standard_errors": {"roll": [0.08]}}))
+    with pytest.raises(RcmKinError, match="must map each joint"):
+        read_standard_errors(path)
 
 
 # --- statistics ----------------------------------------------------------------------------------
@@ -352,9 +358,12 @@ def test_a_killed_worker_does_not_change_the_answer(cluster, study, serial):
 
 def test_cli_errors_are_one_line(capsys):
     assert main(["robustness", "psm", "--controller", "p", "--experiment", "sine", "--samples", "0"]) == 2
-    assert capsys.readouterr().err == "error: --samples must be at least 1, got 0\n"
+    assert capsys.readouterr().err == "error: --samples must be at least 1 and --seed at least 0, got 0 and 0\n"
     assert main(["robustness", "mtm", "--controller", "p", "--experiment", "sine", "--samples", "2"]) == 2
     assert capsys.readouterr().err.startswith("error: ")
+    assert main(ARGS + ["--seed", "-1"]) == 2
+    err = capsys.readouterr().err
+    assert err == f"error: --samples must be at least 1 and --seed at least 0, got {SAMPLES} and -1\n"
     assert main(ARGS + ["--skip", "1"]) == 2                 # the statistics would start after the run
     assert capsys.readouterr().err.startswith("error: the statistics start within the run")
     assert main(ARGS + ["--scheduler", "tcp://127.0.0.1:1", "--workers", "2"]) == 2

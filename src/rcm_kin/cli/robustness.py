@@ -63,8 +63,8 @@ def cmd_robustness(args) -> None:
     from rcm_kin.robustness.task import Study
 
     require_psm(args, "the robustness runs simulate the PSM's driven joints, not '{robot}'")
-    if args.samples < 1:
-        raise RcmKinError(f"--samples must be at least 1, got {args.samples}")
+    if args.samples < 1 or args.seed < 0:
+        raise RcmKinError(f"--samples must be at least 1 and --seed at least 0, got {args.samples} and {args.seed}")
     if args.workers is not None and args.workers < 1:
         raise RcmKinError(f"--workers must be at least 1, got {args.workers}")
     if args.workers is not None and args.scheduler:

@@ -88,8 +88,11 @@ def read_standard_errors(path: str | Path) -> dict[str, tuple[float, str]]:
         raise RcmKinError(f"{path} has no \"standard_errors\": give rcm-kin identify ... --json output")
     out: dict[str, tuple[float, str]] = {}
     for key, source in (("standard_errors", "gauss-newton"), ("jackknife_standard_errors", "jackknife")):
-        for joint, errors in (raw.get(key) or {}).items():
-            for name, sigma in (errors or {}).items():
+        tables = raw.get(key) or {}
+        if not (isinstance(tables, dict) and all(isinstance(t, dict) for t in tables.values())):
+            raise RcmKinError(f"{path}: \"{key}\" must map each joint to {{parameter: standard error}}")
+        for joint, errors in tables.items():
+            for name, sigma in errors.items():
                 if isinstance(sigma, (int, float)) and np.isfinite(sigma) and sigma >= 0:
                     out[f"drive_train.{joint}.{name}"] = (float(sigma), source)
     return out
@@ -143,6 +146,8 @@ def sample_seeds(seed: int, samples: int) -> list[np.random.SeedSequence]:
     """The seed of each of ``samples`` samples: ``SeedSequence(seed).spawn(samples)``."""
     if samples < 1:
         raise RcmKinError(f"the number of samples must be at least 1, got {samples}")
+    if seed < 0:
+        raise RcmKinError(f"the seed is a non-negative integer, got {seed}")
     return np.random.SeedSequence(seed).spawn(samples)
 
 
