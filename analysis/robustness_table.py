@@ -24,7 +24,8 @@ def spread(s: dict, digits: int = 2) -> str:
 
 def table(result: dict) -> str:
     lines = [f"{result['experiment']}, {result['samples']} samples (seed {result['seed']})", "",
-             "| controller | axis | max error (deg) | mean error (deg) | saturated | diverged | 400 Hz radius median / worst"
+             "| controller | axis | max error (deg) | mean error (deg) | saturated | diverged "
+             "| 400 Hz radius median / worst"
              " | least damping median / worst | 400 Hz linearly unstable |", "|---|---|---|---|---|---|---|---|---|"]
     for name, c in result["controllers"].items():
         s = c["stability"]

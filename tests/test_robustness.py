@@ -206,20 +206,34 @@ def test_a_sample_is_the_simulator_on_the_drawn_set(study, serial):
     assert nominal["roll"].max_error_deg != outcome.max_error_deg[1, 0]
 
 
-def test_loop_margins_are_the_stability_survey(params):
-    """With integral action the margins are ``stability_survey``'s (the project's survey, same grid)."""
-    from rcm_kin.control.stability import stability_survey
-    from rcm_kin.robot import load_robot
-    from rcm_kin.robustness.task import linear_law, loop_margins
-    from rcm_kin.simulation.experiments import psm_plant_and_schedule
+def test_loop_margins_are_the_stability_survey_without_the_insertion_modes(params, monkeypatch):
+    """The modes left out are the insertion's own loop (its 2 x 2 block, the coupling dropped, within
+    1 %); with them back, the margins are ``stability_survey``'s (the project's survey, same grid)."""
+    from rcm_kin.control.gain_schedule import closed_loop_matrix
+    from rcm_kin.control.linearization import linearize_grid
+    from rcm_kin.control.stability import firmware_loop_matrix, stability_survey
     from rcm_kin.dynamics.state_space import driven_dynamics
+    from rcm_kin.robot import load_robot
+    from rcm_kin.robustness import task
+    from rcm_kin.simulation.experiments import psm_plant_and_schedule
 
     model = driven_dynamics(load_robot("psm"), params, coulomb=False)
     _, schedule = psm_plant_and_schedule(params)
+    law = task.linear_law("scheduled", schedule)
+    grid = linearize_grid(model, [[np.radians(20), np.radians(-15), schedule.insertion]])
+    for matrix in (closed_loop_matrix, firmware_loop_matrix):
+        full = matrix(grid.A[0], grid.B[0], *law(20.0, -15.0))
+        kept = task.roll_pitch_modes(full)
+        everything = np.linalg.eigvals(full)
+        dropped = [w for w in everything if np.min(np.abs(kept - w)) > 1e-12]
+        own = np.linalg.eigvals(full[np.ix_(task.INSERTION_STATES, task.INSERTION_STATES)])
+        assert len(dropped) == 2 and len(kept) == len(everything) - 2
+        assert np.sort_complex(np.array(dropped)) == pytest.approx(np.sort_complex(own), rel=1e-2)
+    monkeypatch.setattr(task, "roll_pitch_modes", np.linalg.eigvals)     # every mode, as the survey takes them
     for name in ("scheduled", "thesis"):
-        law = linear_law(name, schedule)
+        law = task.linear_law(name, schedule)
         survey = stability_survey(model, schedule, 3, gains=law)
-        assert loop_margins(model, schedule, law, 3) == pytest.approx(
+        assert task.loop_margins(model, schedule, law, 3) == pytest.approx(
             (survey.max_real.max(), survey.spectral_radius.max(), survey.min_damping.min()), rel=1e-12)
 
 

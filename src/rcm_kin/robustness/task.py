@@ -6,9 +6,10 @@ parameter set (:func:`rcm_kin.simulation.experiments.psm_plant_and_schedule`), a
 
 - the closed-loop experiment (:func:`rcm_kin.simulation.loop.simulate`, 400 Hz firmware) and its
   tracking metrics; a run whose state leaves the finite numbers is *diverged*;
-- the linear stability of the loop about every pose of a ``survey_points`` x ``survey_points``
-  grid over the schedule's span (:func:`loop_margins`, on the drawn set's smooth model, Coulomb
-  friction left out as the design does): the largest real part of the continuous closed loop
+- the linear stability of the roll and pitch about every pose of a ``survey_points`` x
+  ``survey_points`` grid over the schedule's span (:func:`loop_margins`, on the drawn set's smooth
+  model, Coulomb friction left out as the design does; the insertion's own modes left out):
+  the largest real part of the continuous closed loop
   (:func:`rcm_kin.control.gain_schedule.closed_loop_matrix`), the largest spectral radius of
   the 400 Hz firmware loop (:func:`rcm_kin.control.stability.firmware_loop_matrix`) and the
   smallest damping ratio of its poles (as ``stability_survey`` takes it). The PID's
@@ -103,15 +104,31 @@ def linear_law(name: str, schedule: GainSchedule):
     return None
 
 
+INSERTION_STATES = [2, 5]     # the insertion's position and velocity in the loops' state
+
+
+def roll_pitch_modes(matrix: np.ndarray) -> np.ndarray:
+    """The eigenvalues of a closed-loop matrix (continuous (7, 7) or firmware (10, 10), first six
+    states the model's ``[q; v]``) whose modes are the roll's and pitch's: those with at most half
+    of their physical state (``|v_i|^2`` over ``q; v``) in the insertion's position and velocity.
+    The insertion's own modes (its firmware P loop, the same under every controller and not drawn)
+    would otherwise set the worst margin of every roll/pitch law."""
+    w, V = np.linalg.eig(matrix)
+    physical = np.abs(V[:6]) ** 2
+    total = physical.sum(axis=0)
+    insertion = np.divide(physical[INSERTION_STATES].sum(axis=0), total, out=np.zeros_like(total), where=total > 0)
+    return w[insertion <= 0.5]
+
+
 def loop_margins(model: DrivenDynamics, schedule: GainSchedule, law, points: int) -> tuple[float, float, float]:
-    """Worst linear stability of the loop under ``law`` (:func:`linear_law`) over a ``points`` x
-    ``points`` roll x pitch grid spanning the schedule's, at its insertion: the largest real part
-    (1/s) of the continuous closed loop, the largest spectral radius of the 400 Hz firmware loop,
-    and the smallest damping ratio of the firmware loop's poles taken as ``s = ln(z) / T``
-    (:func:`rcm_kin.control.stability.damping_ratios`; its deadbeat modes, the stored previous
-    angles, left out). A law without integral action (pitch Ki 0) leaves the loops' error integral a mode
-    nothing depends on (exactly 0 in s, 1 in z); it is left out, so a P loop is judged on its
-    own modes."""
+    """Worst linear stability of the roll and pitch under ``law`` (:func:`linear_law`) over a
+    ``points`` x ``points`` roll x pitch grid spanning the schedule's, at its insertion: the largest
+    real part (1/s) of the continuous closed loop's roll/pitch modes (:func:`roll_pitch_modes`),
+    the largest spectral radius of the 400 Hz firmware loop's, and the smallest damping ratio of
+    the firmware loop's taken as ``s = ln(z) / T`` (:func:`rcm_kin.control.stability.damping_ratios`;
+    the deadbeat modes, the stored previous angles, left out). A law without integral action
+    (pitch Ki 0) leaves the loops' error integral a mode nothing depends on (exactly 0 in s, 1 in
+    z); it is left out too, so a P loop is judged on its own modes."""
     rolls = np.linspace(schedule.roll_deg[0], schedule.roll_deg[-1], points)
     pitches = np.linspace(schedule.pitch_deg[0], schedule.pitch_deg[-1], points)
     R, P = np.meshgrid(rolls, pitches)
@@ -121,10 +138,9 @@ def loop_margins(model: DrivenDynamics, schedule: GainSchedule, law, points: int
     for r, p, A, B in zip(R.ravel(), P.ravel(), grid.A, grid.B):
         k_roll, k_pitch = law(r, p)
         keep_s, keep_z = (slice(None), slice(None)) if k_pitch[2] else (slice(0, 6), slice(0, 9))
-        closed = closed_loop_matrix(A, B, k_roll, k_pitch)[keep_s, keep_s]
-        sampled = firmware_loop_matrix(A, B, k_roll, k_pitch)[keep_z, keep_z]
-        max_real = max(max_real, float(np.linalg.eigvals(closed).real.max()))
-        z = np.linalg.eigvals(sampled)
+        s = roll_pitch_modes(closed_loop_matrix(A, B, k_roll, k_pitch)[keep_s, keep_s])
+        z = roll_pitch_modes(firmware_loop_matrix(A, B, k_roll, k_pitch)[keep_z, keep_z])
+        max_real = max(max_real, float(s.real.max()))
         radius = max(radius, float(np.abs(z).max()))
         z = z[np.abs(z) > 1e-9]
         damping = min(damping, float(damping_ratios(np.log(z.astype(complex)) / FIRMWARE_PERIOD).min()))
