@@ -6,8 +6,9 @@ samples whose run did not diverge (a diverged run has no error to speak of: it c
 ``unstable_fraction``); a figure no sample has is NaN (``null`` in JSON).
 
 A sample is *unstable* for a controller when its simulated run (the nonlinear plant with the
-friction that sticks, PWM saturated) diverged. The linear verdicts are reported beside it: the
-400 Hz firmware loop linearised about some pose of the stability grid with a pole on or outside
+friction that sticks, PWM saturated) diverged. The linear verdicts are reported beside it, on the
+roll and pitch modes (:func:`rcm_kin.robustness.task.loop_margins`): the 400 Hz firmware loop
+linearised about some pose of the stability grid with a pole on or outside
 the unit circle (spectral radius >= 1; sampling and filter lags included), and the continuous
 loop with a pole in the closed right half-plane. Both linearise the smooth model without
 Coulomb friction (as the design does), so a loop the friction holds can be linearly unstable
@@ -65,8 +66,8 @@ class ControllerRobustness:
     axes: dict[str, AxisRobustness]        # roll, pitch
     unstable_fraction: float               # the simulated run diverged (module notes)
     continuous_max_real: Spread            # 1/s, largest real part of the continuous loop over the grid
-    firmware_spectral_radius: Spread       # largest |z| of the 400 Hz loop over the grid
-    firmware_min_damping: Spread           # least damping ratio of the 400 Hz loop's poles over the grid
+    firmware_spectral_radius: Spread       # largest |z| of the 400 Hz loop's roll/pitch modes over the grid
+    firmware_min_damping: Spread           # least damping ratio of those modes over the grid
     continuous_unstable_fraction: float    # max real part >= 0
     firmware_unstable_fraction: float      # spectral radius >= 1
     has_margin: bool                       # False: a law the linear survey does not model (PID)
