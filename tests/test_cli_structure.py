@@ -40,8 +40,8 @@ def test_cli_function_size(path):
 def test_cli_has_every_command():
     commands = rcm_kin.cli.build_parser()._subparsers._group_actions[0].choices
     assert list(commands) == ["info", "fk", "ik", "gravity", "torque-map", "calibrate", "dynamics", "linearize",
-                              "schedule", "simulate", "sysid", "greybox", "identify", "predict", "excite", "view",
-                              "safety", "report", "export"]
+                              "schedule", "simulate", "robustness", "sweep", "sysid", "greybox", "identify", "predict",
+                              "excite", "view", "safety", "report", "export"]
 
 
 # --- inverse kinematics: every solution put through forward kinematics lands on its target ---

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import sys
 
-from rcm_kin.cli import control, drive_train, export, identification, kinematics, safety, simulation, statics, views
+from rcm_kin.cli import (control, drive_train, export, identification, kinematics, robustness, safety, simulation,
+                         statics, views)
 from rcm_kin.cli.common import RAW, Parser
 from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.rosbag import DEFAULT_TOPIC, telemetry_topic
@@ -18,7 +19,8 @@ from rcm_kin.identification.rosbag import DEFAULT_TOPIC, telemetry_topic
 COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
             statics.add_gravity, statics.add_torque_map, statics.add_calibrate,
             control.add_dynamics, control.add_linearize, control.add_schedule,
-            simulation.add_simulate, identification.add_sysid, identification.add_greybox,
+            simulation.add_simulate, robustness.add_robustness, robustness.add_sweep,
+            identification.add_sysid, identification.add_greybox,
             drive_train.add_identify, drive_train.add_predict, drive_train.add_excite,
             views.add_view, safety.add_safety, views.add_report, export.add_export)
 # the commands that read telemetry logs: CSV, or ROS 2 bags whose JointState topic --topic names

@@ -5,7 +5,8 @@ Sections (one module each in :mod:`rcm_kin.report.sections`, one template each i
 self-checks, holding-effort maps with the thesis Fig 4.6/4.7 curves, the drive parameters and
 the counterweight designs, the linear models per grid pose, the model-based gain schedule
 beside the thesis's tables, the thesis's tracking experiments (P against the scheduled
-controller) with animations, and the safety filters and certificates. With a data folder:
+controller) with animations, the controllers' robustness to the parameter uncertainty (a small
+Monte Carlo on an embedded Dask cluster), and the safety filters and certificates. With a data folder:
 calibration, identification per pose, the grey-box fit, and the identified drive train against
 every step log (each also left out of the fit) on the measured logs.
 
@@ -42,6 +43,7 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     from rcm_kin.report.sections.models import models_section
     from rcm_kin.report.sections.mujoco import mujoco_section
     from rcm_kin.report.sections.robots import robots_section
+    from rcm_kin.report.sections.robustness import robustness_section
     from rcm_kin.report.sections.safety import safety_section
 
     if map_points < 2:
@@ -50,10 +52,12 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
         raise RcmKinError(f"no data folder at {data}")
     workers = workers or min(4, len(os.sched_getaffinity(0)))
     out = output_folder(out)
-    # (label, function, arguments), the longest first (safety ~18 s, the control chain ~15 s, the
-    # rest a few s each on this machine) so that the pool's workers finish together
+    # (label, function, arguments), the longest first (safety ~18 s, the control chain ~15 s, robustness
+    # ~26 s on its own Dask cluster, the rest a few s each on this machine) so that the pool's
+    # workers finish together
     jobs = [("safety", safety_section, (out,)),
             ("gain schedule, linear models, tracking", _control_sections, (out, _mtm_recording(data))),
+            ("robustness", robustness_section, (out,)),
             ("effort maps", gravity_section, (out, map_points)), ("robot views", robots_section, (out,)),
             ("models checked", models_section, (out,)), ("MuJoCo", mujoco_section, (out,))]
     if data is not None:
@@ -67,8 +71,9 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
                 results[label] = future.result()
                 bar.set_postfix_str(label)
                 bar.update()
-        safety, (schedule, linear, tracking), gravity, robots, models = (results[label] for label, _, _ in jobs[:5])
-        sections = [robots, models, gravity, linear, schedule, tracking, safety]
+        schedule, linear, tracking = results["gain schedule, linear models, tracking"]
+        sections = [results["robot views"], results["models checked"], results["effort maps"], linear, schedule,
+                    tracking, results["robustness"], results["safety"]]
         sections += [s for s in [results["MuJoCo"]] if s is not None]   # with the [mujoco] extra
         if data is not None:
             sections.append(results["measured data"])

@@ -1,0 +1,110 @@
+"""Batches of independent work on a ``dask.distributed`` cluster.
+
+Without a scheduler address the run starts an embedded :class:`~distributed.LocalCluster` sized
+to the machine (one worker process per core, one thread each: the simulations are pure Python
+and NumPy, which threads would serialise); with ``tcp://HOST:PORT`` it runs on an existing
+cluster (``dask scheduler`` and ``dask worker ADDRESS`` processes; see the README). Every worker
+needs rcm-kin importable; what it builds (models, the gain schedule, the reference) it builds once
+and keeps in its process (:mod:`rcm_kin.robustness.task`).
+
+Results do not depend on the cluster: each sample draws from its own seed
+(:func:`rcm_kin.robustness.sampling.sample_seeds`), batches are gathered in order, and a batch
+is a pure function of its arguments. A worker lost mid-run costs only time: the scheduler
+re-runs its batches elsewhere (up to ``distributed.scheduler.allowed-failures`` losses per
+batch), and a batch that raised on a worker is retried ``RETRIES`` times before the error
+reaches the client.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import sys
+from contextlib import contextmanager
+from typing import Callable, Iterator, Sequence
+
+from tqdm import tqdm
+
+from rcm_kin.errors import RcmKinError
+from rcm_kin.robustness.sampling import sample_seeds
+from rcm_kin.robustness.statistics import Robustness, summarise
+from rcm_kin.robustness.task import Study, run_batch
+
+RETRIES = 2                 # re-runs of a batch that raised on a worker
+CONNECT_TIMEOUT = "10s"     # to reach an existing scheduler
+BATCHES_PER_WORKER = 4      # default batch size: about this many batches per worker, for balance
+
+
+def machine_workers() -> int:
+    """Worker processes of the embedded cluster: the cores this process may use."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+@contextmanager
+def dask_client(scheduler: str | None = None, workers: int | None = None) -> Iterator:
+    """A ``distributed.Client``: on the scheduler at ``scheduler`` (``tcp://HOST:PORT``), or on an
+    embedded local cluster of ``workers`` processes (default :func:`machine_workers`), one thread
+    each, closed on exit."""
+    from distributed import Client, LocalCluster
+
+    if scheduler is None:
+        n = workers or machine_workers()
+        if n < 1:
+            raise RcmKinError(f"the local cluster needs at least 1 worker, got {n}")
+        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                          silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+            yield client
+        return
+    try:
+        client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise RcmKinError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+    with client:
+        yield client
+
+
+def batches_of(items: Sequence, batch_size: int) -> list[list]:
+    """``items`` cut in consecutive batches of ``batch_size`` (the last may be shorter)."""
+    if batch_size < 1:
+        raise RcmKinError(f"the batch size must be at least 1, got {batch_size}")
+    return [list(items[k:k + batch_size]) for k in range(0, len(items), batch_size)]
+
+
+def default_batch_size(items: int, workers: int) -> int:
+    """About :data:`BATCHES_PER_WORKER` batches per worker."""
+    return max(1, math.ceil(items / (BATCHES_PER_WORKER * max(workers, 1))))
+
+
+def map_batches(client, function: Callable, batches: list, progress: bool = True, desc: str = "batches",
+                on_batch: Callable[[int], None] | None = None, **shared) -> list:
+    """``function(batch, **shared)`` for every batch on ``client``'s cluster; the results in batch
+    order. A progress bar on stderr when ``progress``; ``on_batch(done)`` after each batch that
+    finishes (done = how many have)."""
+    from distributed import as_completed
+
+    futures = client.map(function, batches, pure=False, retries=RETRIES, **shared)
+    with tqdm(total=len(futures), desc=desc, unit="batch", file=sys.stderr, disable=not progress) as bar:
+        for done, _ in enumerate(as_completed(futures), start=1):
+            bar.update()
+            if on_batch:
+                on_batch(done)
+    return client.gather(futures)
+
+
+def _batch(batch, study: Study):
+    return run_batch(study, batch)
+
+
+def run_robustness(study: Study, samples: int, seed: int = 0, client=None, batch_size: int | None = None,
+                   progress: bool = True, on_batch: Callable[[int], None] | None = None) -> Robustness:
+    """``samples`` samples of ``study`` on ``client``'s cluster (default: an embedded local
+    cluster), seeded by ``seed``; the same result whatever the cluster and the batch size."""
+    seeds = list(enumerate(sample_seeds(seed, samples)))
+    if client is None:
+        with dask_client() as own:
+            return run_robustness(study, samples, seed, own, batch_size, progress, on_batch)
+    workers = len(client.nthreads()) if batch_size is None else 1
+    batches = batches_of(seeds, batch_size or default_batch_size(samples, workers))
+    results = map_batches(client, _batch, batches, progress, "robustness", on_batch, study=study)
+    return summarise(study, seed, [outcome for batch in results for outcome in batch])
