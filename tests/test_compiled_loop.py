@@ -1,21 +1,24 @@
 """The closed loop in one compiled kernel (issue 16) against the readable reference: the loop of
-``loop.simulate`` with the controller classes and ``DriveTrainPlant.step``, tick for tick."""
+``loop.simulate`` with the controller classes on ``DriveTrainPlant.step`` and on the smooth
+model's period map, tick for tick."""
 
 from __future__ import annotations
 
 import os
 import shutil
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.simulation import compiled_loop
-from rcm_kin.simulation.compiled_loop import compiled_drive_train, loop_law, simulate_compiled
+from rcm_kin.simulation.compiled_loop import compiled_drive_train, compiled_smooth, loop_law, simulate_compiled
 from rcm_kin.simulation.controllers import CONTROLLERS, make_controller
 from rcm_kin.simulation.experiments import psm_plant_and_schedule
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import simulate
-from rcm_kin.simulation.plant import drive_train_plant
+from rcm_kin.simulation.plant import drive_train_plant, period_map
 from rcm_kin.simulation.references import sine_reference, step_reference
 
 T = 1.0 / 400.0
@@ -30,21 +33,31 @@ def reference_plant(psm, params):
     return drive_train_plant(psm, params, T)
 
 
-@pytest.fixture(scope="module")
-def schedule():
-    return psm_plant_and_schedule()[1]
+@pytest.fixture(scope="module", params=["drive-train", "smooth"])
+def plants(request, psm, params, reference_plant):
+    """(reference step, initial, compiled plant, gain schedule) of the shipped drive-train plant
+    and of the smooth model (the drive trains stripped), the reference interpreted by CasADi."""
+    if request.param == "drive-train":
+        compiled = compiled_drive_train(reference_plant)
+        return reference_plant.step, reference_plant.initial, compiled, psm_plant_and_schedule(params)[1]
+    smooth_params = replace(params, drive_train={})
+    smooth = period_map(driven_dynamics(psm, smooth_params).forward, T)
+    compiled = compiled_smooth(smooth, T)
+    return (lambda x, u: np.array(smooth(x, u)).ravel(), compiled.initial, compiled,
+            psm_plant_and_schedule(smooth_params)[1])
 
 
 @needs_compiler
-def test_plant_step_equals_the_drive_train_plant(reference_plant):
-    """One period from varied states and PWMs: the C mass matrix and bias called from numba and
-    the stick-slip kernel, against ``DriveTrainPlant.step`` (interpreted CasADi), to 1e-12."""
-    fast = compiled_drive_train(reference_plant)
+def test_plant_step_equals_the_reference_plant(plants):
+    """One period from varied states and PWMs: the C model functions called from numba (and the
+    stick-slip kernel), against ``DriveTrainPlant.step`` or the smooth period map (interpreted
+    CasADi), to 1e-12."""
+    step, initial, fast, _ = plants
     rng = np.random.default_rng(1)
-    x = reference_plant.initial([0.2, -0.25, 0.09])
+    x = initial([0.2, -0.25, 0.09])
     for _ in range(200):
         u = rng.uniform(-150, 150, 3)
-        expected = reference_plant.step(x, u)
+        expected = step(x, u)
         got = fast.step(x, u)
         np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
         x = expected
@@ -54,16 +67,16 @@ def test_plant_step_equals_the_drive_train_plant(reference_plant):
 @needs_compiler
 @pytest.mark.parametrize("noise", [0.0, 1.0])
 @pytest.mark.parametrize("experiment", ["sine", "step"])
-def test_compiled_loop_equals_the_reference_tick_for_tick(reference_plant, schedule, experiment, noise):
+def test_compiled_loop_equals_the_reference_tick_for_tick(plants, experiment, noise):
     """Every controller, with and without encoder noise, on a moving reference (feedforward and
     friction compensation act) and on steps: positions within 1e-9 rad (the insertion 1e-9 m),
     the sent PWM identical, the commands within 1e-9 counts."""
+    step, initial, fast_plant, schedule = plants
     settings = FirmwareSettings(noise_counts=noise)
     ref = sine_reference(0.8, T) if experiment == "sine" else step_reference(0.8, T, at=0.3)
-    fast_plant = compiled_drive_train(reference_plant)
     for name in CONTROLLERS:
         law = make_controller(name, schedule)
-        slow = simulate(reference_plant.step, law, ref, settings, seed=7, settle=0.5, initial=reference_plant.initial)
+        slow = simulate(step, law, ref, settings, seed=7, settle=0.5, initial=initial)
         fast = simulate_compiled(fast_plant, loop_law(law), law.name, ref, settings, seed=7, settle=0.5)
         assert fast.controller == name and fast.position.shape == slow.position.shape
         np.testing.assert_allclose(fast.position[:, :2], slow.position[:, :2], rtol=0, atol=np.degrees(1e-9))

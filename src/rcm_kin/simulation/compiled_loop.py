@@ -1,25 +1,28 @@
 """The whole closed loop in one compiled kernel: encoders, velocity estimate, controller law,
-saturation and the drive-train plant, tick after tick inside one numba function.
+saturation and the plant, tick after tick inside one numba function.
 
 The readable classes stay the reference (:func:`rcm_kin.simulation.loop.simulate` with the
-controllers of :mod:`rcm_kin.simulation.controllers` and
-:class:`~rcm_kin.simulation.plant.DriveTrainPlant`); this kernel repeats their arithmetic
-operation for operation, and ``tests/test_compiled_loop.py`` holds it to them tick for tick.
+controllers of :mod:`rcm_kin.simulation.controllers` on
+:class:`~rcm_kin.simulation.plant.DriveTrainPlant` or the smooth model's period map); this
+kernel repeats their arithmetic operation for operation, and ``tests/test_compiled_loop.py``
+holds it to them tick for tick.
 
-- Rigid body: the model's mass matrix and bias forces are the CasADi functions compiled to C
-  (:func:`rcm_kin.symbolic.compiled.compiled_library`), called from the kernel through their C
-  entry point (CasADi's ``f(arg, res, iw, w, mem)``) by address: the same expression graph the
-  plant evaluates, no table.
-- Stick-slip axes: the plant's own numba kernel (:func:`rcm_kin.dynamics.stick_slip._advance`).
+- Plants (:class:`CompiledPlant`): the CasADi functions compiled to C
+  (:func:`rcm_kin.symbolic.compiled.compiled_library`) and called from the kernel through their
+  C entry point (CasADi's ``f(arg, res, iw, w, mem)``) by address: the same expression graphs,
+  no table. The drive-train plant evaluates its mass matrix and bias forces once per period and
+  advances the stick-slip axes with the plant's own numba kernel
+  (:func:`rcm_kin.dynamics.stick_slip._advance`); the smooth plant is its RK4 period map.
 - Controllers: :func:`loop_law` turns each readable controller into arrays (kind, gains, the
   gain tables on their grid); the firmware's clamped bilinear rule and the conditional
   anti-windup are written out in the same order as the reference.
 - Encoder noise is drawn in Python from the run's generator in the reference's order (3 values
   for the first reading, then 3 per tick), so both paths see the same counts.
 
-Where the model functions cannot be compiled (no C compiler, unwritable cache), :func:`compiled_drive_train`
-returns None and says so once on stderr; :mod:`rcm_kin.simulation.experiments` then runs the
-per-tick Python fast path (:mod:`rcm_kin.simulation.fast_path`).
+Where the model functions cannot be compiled (no C compiler, unwritable cache),
+:func:`compiled_drive_train` and :func:`compiled_smooth` return None and say so once on stderr;
+:mod:`rcm_kin.simulation.experiments` then runs the per-tick Python fast path
+(:mod:`rcm_kin.simulation.fast_path`).
 
 numba's on-disk cache keys a function on its own file only; the kernel below inlines the
 stick-slip kernels, so it is built in a closure over a hash of ``stick_slip.py`` (numba keys
@@ -58,6 +61,7 @@ from rcm_kin.simulation.references import Reference
 from rcm_kin.symbolic.compiled import compiled_library
 
 P, PID, STATE_FEEDBACK, THESIS = 0, 1, 2, 3        # LoopLaw.kind
+DRIVE_TRAIN, SMOOTH = 0, 1                         # CompiledPlant.kind
 CHUNK = 4000                                       # ticks per kernel call (the progress bar's step)
 
 
@@ -111,20 +115,27 @@ def _call_c(typingctx, address, arg, res, iw, w):
     return signature, codegen
 
 
-# --- the drive-train plant with its rigid body compiled -----------------------------------------
+# --- the plants with their model functions compiled ---------------------------------------------
 
 @dataclass(frozen=True)
-class CompiledDriveTrain:
-    """:class:`DriveTrainPlant` with its mass matrix and bias as C entry points: ``step`` and
-    ``initial`` as the plant's (same state layout), and what the closed-loop kernel needs."""
+class CompiledPlant:
+    """A plant of the loop with its CasADi functions as C entry points, ``step`` and ``initial``
+    as the plant's (same state layout):
 
-    plant: DriveTrainPlant
-    mass_matrix: CFunction       # q -> M (3, 3), column-major
-    bias: CFunction              # (q, v) -> h (3,)
-    substeps: int                # stick-slip substeps per period, as advance_axis takes them
+    - ``DRIVE_TRAIN``: :class:`DriveTrainPlant` (x (15,)); functions: mass matrix ``q -> M``
+      (3 x 3, column-major), bias ``(q, v) -> h`` (3,); the stick-slip axes by ``_advance``;
+    - ``SMOOTH``: the smooth model's period map ``(x, u) -> x(T)`` (x (6,), :func:`rcm_kin.simulation.plant.period_map`)."""
+
+    kind: int                    # DRIVE_TRAIN or SMOOTH
+    functions: tuple[CFunction, ...]
+    period: float                # s
+    drive_train: DriveTrainPlant | None = None
+    substeps: int = 1            # stick-slip substeps per period, as advance_axis takes them
 
     def initial(self, position) -> np.ndarray:
-        return self.plant.initial(position)
+        if self.drive_train is not None:
+            return self.drive_train.initial(position)
+        return np.r_[np.asarray(position, dtype=float), np.zeros(3)]
 
     def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         state = np.array(x, dtype=float)
@@ -132,11 +143,19 @@ class CompiledDriveTrain:
         return state
 
     def kernel_arguments(self) -> tuple:
-        d = self.plant.model.drive
-        return (self.mass_matrix.address, self.mass_matrix.work, self.bias.address, self.bias.work,
-                np.ascontiguousarray(self.plant.friction, dtype=float), np.asarray(d.input_gain, dtype=float),
-                np.asarray(d.damping, dtype=float), np.asarray(d.reflected_inertia, dtype=float),
-                float(self.plant.period), self.substeps)
+        """kind, addresses (3,), work sizes (3, 4), friction (3, n), input gain, damping, reflected
+        inertia (3,) (zeros for the smooth plant), period, substeps."""
+        addresses, work = np.zeros(3, dtype=np.int64), np.zeros((3, 4), dtype=np.int64)
+        for i, fn in enumerate(self.functions):
+            addresses[i], work[i] = fn.address, fn.work
+        if self.drive_train is None:
+            friction, gain, damping, inertia = np.zeros((3, 1)), np.zeros(3), np.zeros(3), np.zeros(3)
+        else:
+            d = self.drive_train.model.drive
+            friction, gain, damping, inertia = (np.ascontiguousarray(a, dtype=float) for a in
+                                                (self.drive_train.friction, d.input_gain, d.damping,
+                                                 d.reflected_inertia))
+        return self.kind, addresses, work, friction, gain, damping, inertia, float(self.period), self.substeps
 
 
 @functools.cache
@@ -145,17 +164,29 @@ def _warn_fallback(reason: str) -> None:
           file=sys.stderr)
 
 
-def compiled_drive_train(plant: DriveTrainPlant) -> CompiledDriveTrain | None:
+def compiled_drive_train(plant: DriveTrainPlant) -> CompiledPlant | None:
     """``plant`` with its rigid-body functions compiled to C, or None (one line on stderr) when
     they cannot be."""
+    if plant.model.mass_matrix.size_out(0) != (3, 3) or plant.model.bias.size_out(0) != (3, 1):
+        raise RcmKinError("the compiled loop is written for three driven joints")
     mass_matrix, bias = c_function(plant.model.mass_matrix), c_function(plant.model.bias)
     if mass_matrix is None or bias is None:
         _warn_fallback("no compiled model functions")
         return None
-    if plant.model.mass_matrix.size_out(0) != (3, 3) or plant.model.bias.size_out(0) != (3, 1):
-        raise RcmKinError("the compiled loop is written for three driven joints")
     substeps = max(1, int(np.ceil(plant.period / SUBSTEP - 1e-9)))     # as advance_axis
-    return CompiledDriveTrain(plant, mass_matrix, bias, substeps)
+    return CompiledPlant(DRIVE_TRAIN, (mass_matrix, bias), plant.period, plant, substeps)
+
+
+def compiled_smooth(period_map: ca.Function, period: float) -> CompiledPlant | None:
+    """The smooth model's ``period_map`` ``(x (6,), u (3,)) -> x(T)`` (``period`` s) compiled to C,
+    or None (one line on stderr) when it cannot be."""
+    if period_map.size_in(0) != (6, 1) or period_map.size_in(1) != (3, 1) or period_map.size_out(0) != (6, 1):
+        raise RcmKinError("the compiled loop is written for three driven joints: (x (6,), u (3,)) -> x (6,)")
+    fn = c_function(period_map)
+    if fn is None:
+        _warn_fallback("no compiled model functions")
+        return None
+    return CompiledPlant(SMOOTH, (fn,), period)
 
 
 # --- controllers as arrays ----------------------------------------------------------------------
@@ -317,18 +348,25 @@ def _keyed_plant_step(physics: str):
     numba's cache keys it on the drive-train model it inlines."""
 
     @numba.njit(cache=True)
-    def plant_step(x, u, mm_address, bias_address, friction, input_gain, damping, reflected_inertia, period,
-                   substeps, buffers, arg, res, iw, w, axis):
-        """``DriveTrainPlant.step``: x (15,) advanced in place over one period under ``u`` (3,)."""
+    def plant_step(kind, x, u, addresses, friction, input_gain, damping, reflected_inertia, period, substeps,
+                   buffers, arg, res, iw, w, axis):
+        """One period of the plant (``DriveTrainPlant.step`` or the smooth period map) under
+        ``u`` (3,), x advanced in place."""
         if len(physics) == 0:          # the closure's key (never empty)
+            return
+        if kind == 1:                  # SMOOTH: x (6,) -> period_map(x, u)
+            out = buffers[18:24]
+            arg[0], arg[1], res[0] = x.ctypes.data, u.ctypes.data, out.ctypes.data
+            _call_c(addresses[0], arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
+            x[:] = out
             return
         q, v, M, h = buffers[0:3], buffers[3:6], buffers[6:15], buffers[15:18]
         for i in range(3):
             q[i], v[i] = x[6 + i], x[9 + i]
         arg[0], res[0] = q.ctypes.data, M.ctypes.data
-        _call_c(mm_address, arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
+        _call_c(addresses[0], arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
         arg[0], arg[1], res[0] = q.ctypes.data, v.ctypes.data, h.ctypes.data
-        _call_c(bias_address, arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
+        _call_c(addresses[1], arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
         for i in range(3):
             for r in range(5):
                 axis[r] = x[3 * r + i]
@@ -345,10 +383,13 @@ _plant_step = _keyed_plant_step(_PHYSICS)
 
 
 @numba.njit(cache=True)
-def _work_buffers(mm_work, bias_work):
-    """Buffers of the plant step: q, v, M, h values, CasADi's arg, res, iw and w, one axis state."""
-    size = np.maximum(np.maximum(mm_work, bias_work), 2)
-    return (np.zeros(18), np.zeros(size[0], dtype=np.int64), np.zeros(size[1], dtype=np.int64),
+def _work_buffers(work):
+    """Buffers of the plant step: q, v, M, h, x(T) values, CasADi's arg, res, iw and w (``work``
+    (k, 4): each function's sizes), one axis state."""
+    size = np.full(4, 2, dtype=np.int64)
+    for row in work:
+        size = np.maximum(size, row)
+    return (np.zeros(24), np.zeros(size[0], dtype=np.int64), np.zeros(size[1], dtype=np.int64),
             np.zeros(size[2], dtype=np.int64), np.zeros(size[3]), np.zeros(5))
 
 
@@ -356,27 +397,27 @@ def _keyed_loops(physics: str):
     """The loops over :data:`_plant_step`, keyed like it (see :func:`_keyed_plant_step`)."""
 
     @numba.njit(cache=True)
-    def plant_steps(x, u, mm_address, mm_work, bias_address, bias_work, friction, input_gain, damping,
-                    reflected_inertia, period, substeps):
-        """One plant step per row of ``u`` (n, 3), x (15,) in place."""
+    def plant_steps(x, u, kind, addresses, work, friction, input_gain, damping, reflected_inertia, period,
+                    substeps):
+        """One plant step per row of ``u`` (n, 3), x in place."""
         if len(physics) == 0:
             return
-        buffers, arg, res, iw, w, axis = _work_buffers(mm_work, bias_work)
+        buffers, arg, res, iw, w, axis = _work_buffers(work)
         for k in range(u.shape[0]):
-            _plant_step(x, u[k], mm_address, bias_address, friction, input_gain, damping, reflected_inertia,
-                        period, substeps, buffers, arg, res, iw, w, axis)
+            _plant_step(kind, x, u[k], addresses, friction, input_gain, damping, reflected_inertia, period,
+                        substeps, buffers, arg, res, iw, w, axis)
 
     @numba.njit(cache=True)
     def run(first, stop, x, previous, filtered, memory, ref_fw, vel_fw, acc_fw, noise, period, limit, count,
             roll_filter, quantise, kind, flags, gains, roll_grid, pitch_grid, table, hold_table, friction_ff,
-            mm_address, mm_work, bias_address, bias_work, friction, input_gain, damping, reflected_inertia,
-            substeps, log_measured, log_position, log_command, log_pwm):
+            plant_kind, addresses, work, friction, input_gain, damping, reflected_inertia, substeps,
+            log_measured, log_position, log_command, log_pwm):
         """Ticks ``first .. stop - 1`` of ``loop.simulate`` (k < 0: settling); the loop's state
         (x, previous, filtered, memory) advanced in place, the ticks k >= 0 logged. Returns the
         tick where the state stopped being finite, or ``stop`` (ran through)."""
         if len(physics) == 0:
             return first
-        buffers, arg, res, iw, w, axis = _work_buffers(mm_work, bias_work)
+        buffers, arg, res, iw, w, axis = _work_buffers(work)
         true, measured, command, u = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
         rdot, racc, scratch = np.zeros(3), np.zeros(3), np.zeros(9)
         n_settle = noise.shape[0] - ref_fw.shape[0] - 1
@@ -403,8 +444,8 @@ def _keyed_loops(physics: str):
                 for j in range(3):
                     log_measured[k, j], log_position[k, j] = measured[j], true[j]
                     log_command[k, j], log_pwm[k, j] = command[j], u[j]
-            _plant_step(x, u, mm_address, bias_address, friction, input_gain, damping, reflected_inertia,
-                        period, substeps, buffers, arg, res, iw, w, axis)
+            _plant_step(plant_kind, x, u, addresses, friction, input_gain, damping, reflected_inertia, period,
+                        substeps, buffers, arg, res, iw, w, axis)
             for j in range(x.size):
                 if not np.isfinite(x[j]):
                     return k
@@ -418,21 +459,20 @@ def _keyed_loops(physics: str):
 _plant_steps, _run = _keyed_loops(_PHYSICS)
 
 
-def simulate_compiled(plant: CompiledDriveTrain, law: LoopLaw, name: str, reference: Reference,
+def simulate_compiled(plant: CompiledPlant, law: LoopLaw, name: str, reference: Reference,
                       settings: FirmwareSettings | None = None, seed: int = 0, settle: float = 1.0,
                       progress: bool = False) -> SimulationResult:
     """:func:`rcm_kin.simulation.loop.simulate` of the controller ``law`` (called ``name``) on
     ``plant``, from rest at the first reference pose, in the compiled kernel: the same result."""
     settings = settings or FirmwareSettings()
     check_run(reference, settings, settle)
-    if not np.isclose(plant.plant.period, settings.period, rtol=1e-12):
-        raise RcmKinError(f"the plant steps {plant.plant.period} s, the controller {settings.period} s")
+    if not np.isclose(plant.period, settings.period, rtol=1e-12):
+        raise RcmKinError(f"the plant steps {plant.period} s, the controller {settings.period} s")
     rng = np.random.default_rng(seed)
     n_settle, n = int(round(settle / settings.period)), reference.time.size
     noise = np.zeros((n_settle + n + 1, 3))
-    if settings.noise_counts:
-        for row in noise:           # the reference's draws, in its order: 3 per reading
-            row[:] = np.round(rng.normal(0.0, settings.noise_counts, 3))
+    if settings.noise_counts:       # the reference's draws in its order, 3 per reading (one bulk draw fills
+        noise = np.round(rng.normal(0.0, settings.noise_counts, noise.shape))   # row by row: tests hold it)
     x = plant.initial(reference.position[0])
     ref_fw, vel_fw, acc_fw = (np.ascontiguousarray(firmware_units(a)) for a in
                               (reference.position, reference.velocity, reference.acceleration))
@@ -449,7 +489,7 @@ def simulate_compiled(plant: CompiledDriveTrain, law: LoopLaw, name: str, refere
             end = _run(first, stop, x, previous, filtered, memory, ref_fw, vel_fw, acc_fw, noise, settings.period,
                        limit, count, settings.roll_filter, settings.quantise_pwm, law.kind, law.flags, law.gains,
                        law.roll_deg, law.pitch_deg, law.table, law.hold, law.friction,
-                       *plant.kernel_arguments()[:-2], plant.substeps, *logs)
+                       *plant.kernel_arguments()[:-2], plant.substeps, *logs)   # the period given above
             if end != stop:
                 raise RcmKinError(f"the simulation diverged at t = {end * settings.period:.3f} s ({name})")
             ticks.update(stop - first)
