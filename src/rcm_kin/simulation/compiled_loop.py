@@ -124,7 +124,8 @@ class CompiledPlant:
 
     - ``DRIVE_TRAIN``: :class:`DriveTrainPlant` (x (15,)); functions: mass matrix ``q -> M``
       (3 x 3, column-major), bias ``(q, v) -> h`` (3,); the stick-slip axes by ``_advance``;
-    - ``SMOOTH``: the smooth model's period map ``(x, u) -> x(T)`` (x (6,), :func:`rcm_kin.simulation.plant.period_map`)."""
+    - ``SMOOTH``: the smooth model's period map ``(x, u) -> x(T)`` (x (6,),
+      :func:`rcm_kin.simulation.plant.period_map`)."""
 
     kind: int                    # DRIVE_TRAIN or SMOOTH
     functions: tuple[CFunction, ...]
