@@ -90,6 +90,27 @@ def test_compiled_loop_equals_the_reference_tick_for_tick(plants, experiment, no
                                  / settings.encoder_count[1]) > 0.6)
 
 
+@needs_compiler
+def test_divergence_is_an_error_at_the_same_tick():
+    """A plant that blows up (x -> 1e200 x + 1 per period): both loops stop with the same message."""
+    import casadi as ca
+
+    from rcm_kin import RcmKinError
+    from rcm_kin.simulation.controllers import PController
+
+    x, u = ca.SX.sym("x", 6), ca.SX.sym("u", 3)
+    blowup = ca.Function("blowup", [x, u], [1e200 * x + 1])
+    plant = compiled_smooth(blowup, T)
+    ref = step_reference(0.5, T)
+    with pytest.raises(RcmKinError) as slow:
+        simulate(lambda x, u: np.array(blowup(x, u)).ravel(), PController(), ref, settle=0.01, initial=plant.initial)
+    with pytest.raises(RcmKinError) as fast:
+        simulate_compiled(plant, loop_law(PController()), "p", ref, settle=0.01)
+    # settling from k = -4: the first period gives 1e200 * 0.08 + 1 (finite), the second overflows
+    assert f"diverged at t = {-3 * T:.3f} s (p)" in str(slow.value)
+    assert str(fast.value) == str(slow.value)
+
+
 def test_unknown_controllers_stay_in_python():
     """A controller the kernel does not know is not translated (run_experiment then uses simulate)."""
     from dataclasses import dataclass

@@ -291,23 +291,23 @@ def _command(kind, flags, gains, roll_grid, pitch_grid, table, hold_table, frict
     """The controller's ``command`` (firmware units, before saturation) into ``command``; ``memory``
     updated in place."""
     e0, e1 = reference[0] - measured[0], reference[1] - measured[1]
-    if kind == 0:                                        # P
+    if kind == P:
         command[0] = -gains[0] * e0
         command[1] = -gains[1] * e1
-    elif kind == 1:                                      # PID, memory: integrals, previous errors
+    elif kind == PID:                                    # memory: integrals, previous errors
         e = (e0, e1)
         for i in range(2):
             de = 0.0 if np.isnan(memory[2 + i]) else (e[i] - memory[2 + i]) / period
             command[i], memory[i] = _conditional_integral(memory[i], e[i], period, limit[i], True, False,
                                                           gains[i] * e[i], gains[4 + i] * de, gains[2 + i], 0.0)
         memory[2], memory[3] = e0, e1
-    else:                                                # state feedback (2) or thesis (3)
+    else:                                                # STATE_FEEDBACK or THESIS
         scheduled, gravity, track, compensate = flags[0], flags[1], flags[2], flags[3]
-        at0, at1 = (measured[0], measured[1]) if (scheduled or kind == 3) else (0.0, 0.0)
+        at0, at1 = (measured[0], measured[1]) if (scheduled or kind == THESIS) else (0.0, 0.0)
         k = scratch[:7]
         _bilinear(roll_grid, pitch_grid, table, at0, at1, k)
         v0, v1 = velocity[0], velocity[1]
-        if kind == 3:
+        if kind == THESIS:
             command[0] = -(k[0] * e0 + k[1] * v0)
             command[1], memory[0] = _conditional_integral(memory[0], e1, period, limit[1], False, False,
                                                           k[2] * e1, k[3] * v1, k[4], 0.0)
@@ -355,7 +355,7 @@ def _keyed_plant_step(physics: str):
         ``u`` (3,), x advanced in place."""
         if len(physics) == 0:          # the closure's key (never empty)
             return
-        if kind == 1:                  # SMOOTH: x (6,) -> period_map(x, u)
+        if kind == SMOOTH:             # x (6,) -> period_map(x, u)
             out = buffers[18:24]
             arg[0], arg[1], res[0] = x.ctypes.data, u.ctypes.data, out.ctypes.data
             _call_c(addresses[0], arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
