@@ -14,9 +14,11 @@ quantisation, firmware velocity estimate), and the cost of one plant period, sam
 
     python benchmarks/bench_simulation.py
 Targets: at least 10 simulated seconds per wall-clock second for every controller (the report's
-experiments and a parameter sweep stay interactive on 2 cores); issue 16: 200 on the fast path
-(:mod:`rcm_kin.simulation.fast_path`: compiled plant functions, stacked gain tables), measured
-here next to the readable reference classes.
+experiments and a parameter sweep stay interactive on 2 cores); issue 16: 200 on the shipped
+plant's fast path, which is the whole loop in one compiled kernel
+(:mod:`rcm_kin.simulation.compiled_loop`), measured here in the same run as the plain reference
+loop (``loop.simulate`` of the readable controller classes on ``DriveTrainPlant``) and the
+per-tick fast path it falls back to without a C compiler (:mod:`rcm_kin.simulation.fast_path`).
 """
 
 from __future__ import annotations
@@ -38,8 +40,9 @@ from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
 from rcm_kin.dynamics.state_space import drive_constants, driven_dynamics  # noqa: E402
 from rcm_kin.hardware import FIRMWARE_PERIOD, PWM_LIMIT  # noqa: E402
 from rcm_kin.simulation.controllers import CONTROLLERS, Sample, make_controller  # noqa: E402
-from rcm_kin.simulation.experiments import psm_plant_and_schedule, run_experiment  # noqa: E402
-from rcm_kin.simulation.fast_path import compiled_period_map, fast_controller  # noqa: E402
+from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule, run_experiment  # noqa: E402
+from rcm_kin.simulation.fast_path import compiled_period_map, fast_controller, fast_plant  # noqa: E402
+from rcm_kin.simulation.loop import simulate  # noqa: E402
 from rcm_kin.simulation.plant import period_map  # noqa: E402
 
 SUBSTEPS = 4
@@ -113,29 +116,64 @@ def main() -> None:
     print("ratio to the shipped plant's period: " + ", ".join(
         f"{label} {seconds / shipped:.2f}" for label, (_, seconds) in zip(("smooth RK4", "Pinocchio", "open-tree ABA"),
                                                                           rows[1:4])))
-    fast_plant_, _ = psm_plant_and_schedule(fast=True)
+    compiled_plant, _ = psm_plant_and_schedule(fast=True)
+    per_tick_plant = fast_plant(plant)
     fast_smooth = compiled_period_map(smooth)
     fast_scheduled = fast_controller(scheduled)
-    report([("fast path: drive-train plant period (compiled M/bias)", per_call(lambda: fast_plant_.step(x, u), 2000)),
+    report([(f"fast path: one plant period, {type(compiled_plant).__name__}.step (numba + C M/bias, from Python)",
+             per_call(lambda: compiled_plant.step(x, u), 2000)),
+            ("per-tick fast path: drive-train plant period (compiled M/bias, buffered calls)",
+             per_call(lambda: per_tick_plant.step(x, u), 2000)),
             ("fast path: smooth period_map compiled, buffered call", per_call(lambda: fast_smooth(xs, u), 2000)),
-            ("fast path: scheduled-gravity tick on stacked tables",
+            ("per-tick fast path: scheduled-gravity tick on stacked tables",
              per_call(lambda: fast_scheduled.command(memory, sample), 2000))])
-    duration = 6.0
-    print(f"\nclosed loop, sine {duration:g} s + 1 s settling: simulated s per wall s (best of 2), fast path and "
-          "reference classes (target >= 200 for the fast path)")
-    print(f"{'controller':18}  {'drive-train fast':>16}  {'reference':>10}  {'smooth fast':>12}  {'reference':>10}")
+    closed_loop(plant, per_tick_plant, schedule, smooth_params)
+
+
+def best_time(run, repeats: int = 3) -> float:
+    """Best wall-clock seconds of ``run()`` over ``repeats`` (after one warm-up run outside)."""
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        run()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def closed_loop(plant, per_tick_plant, schedule, smooth_params, duration: float = 6.0) -> None:
+    """Real-time factor (simulated s per wall s) per controller, the sine experiment, same run:
+    the compiled loop (``run_experiment``, default), the per-tick fast path (its fallback) and
+    the plain reference loop on the shipped drive-train plant; the smooth plant's compiled loop
+    and reference loop (``run_experiment(fast=False)``)."""
+    simulated = duration + 1.0                                        # + 1 s settling
+    reference = experiment_reference("sine", FIRMWARE_PERIOD, duration)
+    print(f"\nclosed loop, sine {duration:g} s + 1 s settling at 400 Hz: simulated s per wall s (best of 3); "
+          "target >= 200 for the compiled loop")
+    header = (f"{'controller':18}  {'compiled loop':>13}  {'per-tick fast':>13}  {'reference':>10}  "
+              f"{'compiled/ref':>12}  {'us/tick':>7}  {'smooth compiled':>15}  {'smooth ref':>10}")
+    print(header)
+    worst = worst_smooth = float("inf")
     for name in CONTROLLERS:
-        cells = []
-        for p in (None, smooth_params):
-            for fast in (True, False):
-                run_experiment("sine", name, duration=1.0, params=p, fast=fast)     # warm-up (builds the plant)
-                best = float("inf")
-                for _ in range(2):
-                    start = time.perf_counter()
-                    run_experiment("sine", name, duration=duration, params=p, fast=fast)
-                    best = min(best, time.perf_counter() - start)
-                cells.append((duration + 1.0) / best)
-        print(f"{name:18}  {cells[0]:14.1f} x  {cells[1]:8.1f} x  {cells[2]:10.1f} x  {cells[3]:8.1f} x")
+        law = make_controller(name, schedule)
+        runs = {
+            "compiled": lambda: run_experiment("sine", name, duration=duration),
+            "per-tick": lambda: simulate(per_tick_plant.step, fast_controller(law), reference,
+                                         initial=per_tick_plant.initial),
+            "reference": lambda: simulate(plant.step, law, reference, initial=plant.initial),
+            "smooth compiled": lambda: run_experiment("sine", name, duration=duration, params=smooth_params),
+            "smooth ref": lambda: run_experiment("sine", name, duration=duration, params=smooth_params, fast=False),
+        }
+        run_experiment("sine", name, duration=0.2)                               # warm-up (builds, loads)
+        run_experiment("sine", name, duration=0.2, params=smooth_params)
+        run_experiment("sine", name, duration=0.2, params=smooth_params, fast=False)
+        factor = {key: simulated / best_time(run) for key, run in runs.items()}
+        worst = min(worst, factor["compiled"])
+        print(f"{name:18}  {factor['compiled']:11.0f} x  {factor['per-tick']:11.1f} x  {factor['reference']:8.1f} x  "
+              f"{factor['compiled'] / factor['reference']:10.0f} x  {1e6 * FIRMWARE_PERIOD / factor['compiled']:7.2f}"
+              f"  {factor['smooth compiled']:13.0f} x  {factor['smooth ref']:8.1f} x")
+        worst_smooth = min(worst_smooth, factor["smooth compiled"])
+    print(f"slowest compiled loop on the shipped plant: {worst:.0f} x real time "
+          f"({'meets' if worst >= 200 else 'MISSES'} the 200 x target); on the smooth model {worst_smooth:.0f} x")
 
 
 if __name__ == "__main__":

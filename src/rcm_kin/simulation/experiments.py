@@ -18,6 +18,8 @@ from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.errors import RcmKinError
 from rcm_kin.robot import load_robot
+from rcm_kin.simulation.compiled_loop import (CompiledPlant, compiled_drive_train, compiled_smooth, loop_law,
+                                              simulate_compiled)
 from rcm_kin.simulation.controllers import make_controller
 from rcm_kin.simulation.fast_path import compiled_period_map, fast_controller, fast_plant
 from rcm_kin.simulation.firmware import FirmwareSettings
@@ -50,11 +52,14 @@ def _plant_and_schedule(params: DriveParameters, period: float, substeps: int, f
         psm = load_robot("psm")
         if params.drive_train:
             plant = drive_train_plant(psm, params, period)
-            plant = fast_plant(plant) if fast else plant
+            if fast:
+                plant = compiled_drive_train(plant) or fast_plant(plant)
         else:
             smooth = period_map(driven_dynamics(psm, params).forward, period, substeps)
-            plant = SmoothPlant(compiled_period_map(smooth) if fast else
-                                lambda x, u: np.array(smooth(x, u)).ravel())
+            if fast:
+                plant = compiled_smooth(smooth, period) or SmoothPlant(compiled_period_map(smooth))
+            else:
+                plant = SmoothPlant(lambda x, u: np.array(smooth(x, u)).ravel())
         schedule = schedule_gains(driven_dynamics(psm, params, coulomb=False), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
         _BUILT[key] = plant, schedule
     return _BUILT[key]
@@ -75,7 +80,9 @@ def psm_plant_and_schedule(params: DriveParameters | None = None, period: float 
     """``(plant, GainSchedule)`` of the PSM with ``params`` (default: shipped set). The plant has
     ``step(x, u) -> x`` and ``initial(q) -> x``: the identified drive trains
     (:class:`~rcm_kin.simulation.plant.DriveTrainPlant`) when ``params`` has them, else the
-    smooth model; ``fast``: its model functions compiled (:mod:`rcm_kin.simulation.fast_path`)."""
+    smooth model; ``fast``: its model functions compiled (a
+    :class:`~rcm_kin.simulation.compiled_loop.CompiledPlant`, whose closed loop runs in one
+    compiled kernel; without a C compiler the per-tick :mod:`rcm_kin.simulation.fast_path`)."""
     return _plant_and_schedule(params or load_drive_parameters(), period, substeps, fast)
 
 
@@ -83,11 +90,16 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
                    params: DriveParameters | None = None, settings: FirmwareSettings | None = None,
                    trajectory=None, seed: int = 0, progress: bool = False, fast: bool = True) -> SimulationResult:
     """Simulate one thesis experiment with one controller (names as in the CLI). ``fast``: the
-    fast path (:mod:`rcm_kin.simulation.fast_path`, compiled plant functions and stacked gain
-    tables); ``False`` runs the readable reference classes."""
+    whole loop in one compiled kernel (:mod:`rcm_kin.simulation.compiled_loop`); without a C
+    compiler the per-tick fast path (:mod:`rcm_kin.simulation.fast_path`, compiled plant functions
+    and stacked gain tables); ``False`` runs the readable reference classes. All give the same
+    result (tests/test_compiled_loop.py, tests/test_simulation.py)."""
     settings = settings or FirmwareSettings()
     plant, schedule = psm_plant_and_schedule(params, settings.period, fast=fast)
     reference = experiment_reference(experiment, settings.period, duration, trajectory)
     law = make_controller(controller, schedule)
+    arrays = loop_law(law) if isinstance(plant, CompiledPlant) else None
+    if arrays is not None:
+        return simulate_compiled(plant, arrays, law.name, reference, settings, seed=seed, progress=progress)
     return simulate(plant.step, fast_controller(law) if fast else law, reference, settings, seed=seed,
                     progress=progress, initial=plant.initial)

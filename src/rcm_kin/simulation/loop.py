@@ -52,6 +52,15 @@ def si_units(q: np.ndarray) -> np.ndarray:
     return np.asarray(q) / FIRMWARE_SCALE
 
 
+def check_run(reference: Reference, settings: FirmwareSettings, settle: float) -> None:
+    """Raise :class:`RcmKinError` unless ``reference`` is sampled at the controller period and the
+    settling time ``settle`` (s) is >= 0."""
+    if reference.time.size < 2 or not np.isclose(reference.time[1] - reference.time[0], settings.period, rtol=1e-9):
+        raise RcmKinError("the reference must be sampled at the controller period")
+    if not (np.isfinite(settle) and settle >= 0):
+        raise RcmKinError(f"the settling time must be >= 0 s, got {settle}")
+
+
 def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: Controller, reference: Reference,
              settings: FirmwareSettings | None = None, seed: int = 0, settle: float = 1.0,
              progress: bool = False, initial: Callable[[np.ndarray], np.ndarray] | None = None) -> SimulationResult:
@@ -60,10 +69,7 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: C
     when given, else ``x = [q; 0]``.
     Deterministic for a given ``seed`` (which only drives the optional encoder noise)."""
     settings = settings or FirmwareSettings()
-    if reference.time.size < 2 or not np.isclose(reference.time[1] - reference.time[0], settings.period, rtol=1e-9):
-        raise RcmKinError("the reference must be sampled at the controller period")
-    if not (np.isfinite(settle) and settle >= 0):
-        raise RcmKinError(f"the settling time must be >= 0 s, got {settle}")
+    check_run(reference, settings, settle)
     rng = np.random.default_rng(seed)
     n_settle, n = int(round(settle / settings.period)), reference.time.size
     x = initial(reference.position[0]) if initial else np.r_[reference.position[0], np.zeros(3)]

@@ -77,15 +77,23 @@ def compiled(fn: ca.Function) -> ca.Function:
     """``fn`` compiled to C and loaded (from the cache when built before), or ``fn`` itself when
     no C compiler is found or the cache folder cannot be written (one line on stderr). Raises
     :class:`RcmKinError` when the compiler fails on the code."""
+    library = compiled_library(fn)
+    return fn if library is None else _load(fn.name(), library)
+
+
+def compiled_library(fn: ca.Function) -> Path | None:
+    """The cached shared library of ``fn`` (built first if absent), which exports CasADi's C
+    interface under ``fn.name()``: ``int name(const double** arg, double** res, long long* iw,
+    double* w, int mem)`` and ``name_work`` for the sizes; None when no C compiler is found or
+    the cache folder cannot be written (one line on stderr, as :func:`compiled`)."""
     command = compiler_command()
     if not command or not _available(command[0]):
-        return fn
+        return None
     try:
-        library = _build(fn, command)
+        return _build(fn, command)
     except OSError as exc:
         _warn(f"cannot write the compiled-function cache {cache_folder()} ({exc.strerror})")
-        return fn
-    return _load(fn.name(), library)
+        return None
 
 
 @functools.lru_cache(maxsize=64)

@@ -1,0 +1,137 @@
+"""The closed loop in one compiled kernel (issue 16) against the readable reference: the loop of
+``loop.simulate`` with the controller classes on ``DriveTrainPlant.step`` and on the smooth
+model's period map, tick for tick."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from rcm_kin.dynamics.state_space import driven_dynamics
+from rcm_kin.simulation import compiled_loop
+from rcm_kin.simulation.compiled_loop import compiled_drive_train, compiled_smooth, loop_law, simulate_compiled
+from rcm_kin.simulation.controllers import CONTROLLERS, make_controller
+from rcm_kin.simulation.experiments import psm_plant_and_schedule
+from rcm_kin.simulation.firmware import FirmwareSettings
+from rcm_kin.simulation.loop import simulate
+from rcm_kin.simulation.plant import drive_train_plant, period_map
+from rcm_kin.simulation.references import sine_reference, step_reference
+
+T = 1.0 / 400.0
+needs_compiler = pytest.mark.skipif(shutil.which(os.environ.get("CC") or "cc") is None,
+                                    reason="no C compiler (CC hidden): the fallback run")
+
+
+@pytest.fixture(scope="module")
+def reference_plant(psm, params):
+    """The shipped plant as the readable class, its model functions interpreted by CasADi."""
+    assert params.drive_train, "the shipped parameters carry identified drive trains"
+    return drive_train_plant(psm, params, T)
+
+
+@pytest.fixture(scope="module", params=["drive-train", "smooth"])
+def plants(request, psm, params, reference_plant):
+    """(reference step, initial, compiled plant, gain schedule) of the shipped drive-train plant
+    and of the smooth model (the drive trains stripped), the reference interpreted by CasADi."""
+    if request.param == "drive-train":
+        compiled = compiled_drive_train(reference_plant)
+        return reference_plant.step, reference_plant.initial, compiled, psm_plant_and_schedule(params)[1]
+    smooth_params = replace(params, drive_train={})
+    smooth = period_map(driven_dynamics(psm, smooth_params).forward, T)
+    compiled = compiled_smooth(smooth, T)
+    return (lambda x, u: np.array(smooth(x, u)).ravel(), compiled.initial, compiled,
+            psm_plant_and_schedule(smooth_params)[1])
+
+
+@needs_compiler
+def test_plant_step_equals_the_reference_plant(plants):
+    """One period from varied states and PWMs: the C model functions called from numba (and the
+    stick-slip kernel), against ``DriveTrainPlant.step`` or the smooth period map (interpreted
+    CasADi), to 1e-12."""
+    step, initial, fast, _ = plants
+    rng = np.random.default_rng(1)
+    x = initial([0.2, -0.25, 0.09])
+    for _ in range(200):
+        u = rng.uniform(-150, 150, 3)
+        expected = step(x, u)
+        got = fast.step(x, u)
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12)
+        x = expected
+    assert np.ptp(x[3:6]) > 0.1                      # the plant moved (rad/s)
+
+
+@needs_compiler
+@pytest.mark.parametrize("noise", [0.0, 1.0])
+@pytest.mark.parametrize("experiment", ["sine", "step"])
+def test_compiled_loop_equals_the_reference_tick_for_tick(plants, experiment, noise):
+    """Every controller, with and without encoder noise, on a moving reference (feedforward and
+    friction compensation act) and on steps: positions within 1e-9 rad (the insertion 1e-9 m),
+    the sent PWM identical, the commands within 1e-9 counts."""
+    step, initial, fast_plant, schedule = plants
+    settings = FirmwareSettings(noise_counts=noise)
+    ref = sine_reference(0.8, T) if experiment == "sine" else step_reference(0.8, T, at=0.3)
+    for name in CONTROLLERS:
+        law = make_controller(name, schedule)
+        slow = simulate(step, law, ref, settings, seed=7, settle=0.5, initial=initial)
+        fast = simulate_compiled(fast_plant, loop_law(law), law.name, ref, settings, seed=7, settle=0.5)
+        assert fast.controller == name and fast.position.shape == slow.position.shape
+        np.testing.assert_allclose(fast.position[:, :2], slow.position[:, :2], rtol=0, atol=np.degrees(1e-9))
+        np.testing.assert_allclose(fast.position[:, 2], slow.position[:, 2], rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(fast.measured, slow.measured)
+        np.testing.assert_array_equal(fast.pwm, slow.pwm)
+        np.testing.assert_allclose(fast.command, slow.command, rtol=0, atol=1e-9)
+        assert np.ptp(fast.pwm[:, 1]) > 10                             # the controller acted
+        if noise:                                                       # the noise reached the encoders
+            assert np.any(np.abs(fast.measured[:, 1] / settings.encoder_count[1] - fast.position[:, 1]
+                                 / settings.encoder_count[1]) > 0.6)
+
+
+@needs_compiler
+def test_divergence_is_an_error_at_the_same_tick():
+    """A plant that blows up (x -> 1e200 x + 1 per period): both loops stop with the same message."""
+    import casadi as ca
+
+    from rcm_kin import RcmKinError
+    from rcm_kin.simulation.controllers import PController
+
+    x, u = ca.SX.sym("x", 6), ca.SX.sym("u", 3)
+    blowup = ca.Function("blowup", [x, u], [1e200 * x + 1])
+    plant = compiled_smooth(blowup, T)
+    ref = step_reference(0.5, T)
+    with pytest.raises(RcmKinError) as slow:
+        simulate(lambda x, u: np.array(blowup(x, u)).ravel(), PController(), ref, settle=0.01, initial=plant.initial)
+    with pytest.raises(RcmKinError) as fast:
+        simulate_compiled(plant, loop_law(PController()), "p", ref, settle=0.01)
+    # settling from k = -4: the first period gives 1e200 * 0.08 + 1 (finite), the second overflows
+    assert f"diverged at t = {-3 * T:.3f} s (p)" in str(slow.value)
+    assert str(fast.value) == str(slow.value)
+
+
+def test_unknown_controllers_stay_in_python():
+    """A controller the kernel does not know is not translated (run_experiment then uses simulate)."""
+    from dataclasses import dataclass
+
+    from rcm_kin.simulation.controllers import PController
+
+    @dataclass(frozen=True)
+    class Doubled(PController):
+        name: str = "doubled"
+
+    assert loop_law(Doubled()) is None
+    assert loop_law(PController()).kind == compiled_loop.P
+
+
+def test_no_compiler_falls_back_with_one_line(reference_plant, tmp_path, monkeypatch, capsys):
+    """With the compiler hidden there is no compiled loop, and stderr says so (one line from the
+    compiled functions, one from the loop), once."""
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
+    compiled_loop._warn_fallback.cache_clear()
+    assert compiled_drive_train(reference_plant) is None
+    assert compiled_drive_train(reference_plant) is None
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and err[0].startswith("warning: no C compiler")
+    assert "closed loop runs tick by tick in Python" in err[1]
