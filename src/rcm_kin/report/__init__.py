@@ -15,6 +15,7 @@ link in index.html is relative to the report folder, so the folder can be moved 
 
 from __future__ import annotations
 
+import html
 from pathlib import Path
 
 from rcm_kin.errors import RcmKinError, output_folder
@@ -24,11 +25,30 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
                  progress: bool = False) -> Path:
     """Run the pipeline on the bundled models (and, with ``data``, on a folder of measured logs);
     ``map_points`` per axis of the holding-effort maps. Returns the path of index.html."""
+    from rcm_kin.statics.calibration import calibration_logs
+    from rcm_kin.statics.gravity_map import check_map_size
+
+    if map_points < 2:
+        raise RcmKinError("the effort maps need at least 2 points per axis")
+    check_map_size(map_points**2)
+    if data is not None:
+        calibration_logs(data)           # the measured logs are there before minutes of work
+    out = output_folder(out)
+    try:
+        return _write_sections(out, data, map_points, progress)
+    except RcmKinError as exc:           # a folder with files but no index would look like a report
+        (out / "index.html").write_text(f"<!doctype html><title>rcm-kin report: failed</title>"
+                                        f"<p>The report was not completed: {html.escape(str(exc))}</p>\n")
+        raise
+
+
+def _write_sections(out: Path, data, map_points: int, progress: bool) -> Path:
+    """The sections in order (see :func:`write_report`), then index.html."""
     from tqdm import tqdm
 
     from rcm_kin.report.render import render_index
-    from rcm_kin.report.sections.gravity import gravity_section
     from rcm_kin.report.sections.drive_train import drive_train_section
+    from rcm_kin.report.sections.gravity import gravity_section
     from rcm_kin.report.sections.linear_models import linear_models_section
     from rcm_kin.report.sections.measured import measured_section
     from rcm_kin.report.sections.models import models_section
@@ -37,11 +57,6 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     from rcm_kin.report.sections.schedule import schedule_section
     from rcm_kin.report.sections.tracking import tracking_section
 
-    if map_points < 2:
-        raise RcmKinError("the effort maps need at least 2 points per axis")
-    if data is not None and not Path(data).is_dir():
-        raise RcmKinError(f"no data folder at {data}")
-    out = output_folder(out)
     with tqdm(total=8 if data is None else 9, desc="report", unit="step", disable=not progress) as bar:
         def step(name: str) -> None:
             bar.set_postfix_str(name)

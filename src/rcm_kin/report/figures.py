@@ -62,19 +62,25 @@ def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0) -> Path:
     """PWM and voltage heat maps of roll and pitch over the roll x pitch grid at one insertion."""
     e = gmap.effort
     fig, axes = plt.subplots(2, 2, figsize=(10, 8), constrained_layout=True)
-    extent = [gmap.roll_deg[0], gmap.roll_deg[-1], gmap.pitch_deg[0], gmap.pitch_deg[-1]]
+    extent = [*_span(gmap.roll_deg), *_span(gmap.pitch_deg)]
     for col, (joint, k) in enumerate((("roll", 0), ("pitch", 1))):
         for row, (quantity, unit) in enumerate((("pwm", "counts"), ("voltage", "V"))):
             data = getattr(e, quantity)[:, :, insertion_index, k]
             ax = axes[row, col]
             im = ax.imshow(data, origin="lower", extent=extent, aspect="auto", cmap="coolwarm",
                            vmin=-np.abs(data).max(), vmax=np.abs(data).max())
-            ax.contour(gmap.roll_deg, gmap.pitch_deg, data, colors="k", linewidths=0.5, levels=9)
+            if min(data.shape) >= 2:                 # a 1-point axis has no contours
+                ax.contour(gmap.roll_deg, gmap.pitch_deg, data, colors="k", linewidths=0.5, levels=9)
             ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=f"{joint} holding {quantity} ({unit})")
             fig.colorbar(im, ax=ax)
     fig.suptitle(f"Holding effort at insertion {gmap.insertion[insertion_index] * 1e3:.0f} mm "
                  "(PWM: hardware sign, positive decreases the angle)")
     return _save(fig, path)
+
+
+def _span(values: np.ndarray) -> tuple[float, float]:
+    """Image extent of grid ``values``: first to last, or +-0.5 about a single value."""
+    return (values[0], values[-1]) if values.size > 1 else (values[0] - 0.5, values[0] + 0.5)
 
 
 def _style(k: int, n: int) -> dict:

@@ -83,5 +83,24 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
     settings = settings or FirmwareSettings()
     plant, schedule = psm_plant_and_schedule(params, settings.period)
     reference = experiment_reference(experiment, settings.period, duration, trajectory)
-    return simulate(plant.step, make_controller(controller, schedule), reference, settings, seed=seed,
-                    progress=progress, initial=plant.initial)
+    result = simulate(plant.step, make_controller(controller, schedule), reference, settings, seed=seed,
+                      progress=progress, initial=plant.initial)
+    check_in_limits(result)
+    return result
+
+
+def check_in_limits(result: SimulationResult) -> None:
+    """Refuse a run whose joints left their limits (or became non-finite): the model means nothing
+    there, and a controller that drives the robot there has failed (the one joint-limit policy)."""
+    psm = load_robot("psm")
+    index = [psm.actuated.index(j) for j in ("roll", "pitch", "insertion")]
+    lower, upper = psm.lower[index], psm.upper[index]
+    position = np.c_[np.radians(result.position[:, :2]), result.position[:, 2]]     # rad, rad, m
+    bad = ~np.isfinite(position) | (position < lower - 1e-6) | (position > upper + 1e-6)
+    if np.any(bad):
+        k, j = np.argwhere(bad)[0]
+        unit, scale = ("m", 1.0) if j == 2 else ("deg", 180 / np.pi)
+        raise RcmKinError(f"the simulated {('roll', 'pitch', 'insertion')[j]} reached {position[k, j] * scale:.4g} "
+                          f"{unit} at t = {result.time[k]:.3f} s, outside its joint range [{lower[j] * scale:.4g}, "
+                          f"{upper[j] * scale:.4g}] {unit}: the closed loop does not hold the robot in its range "
+                          "with these settings (controller, rate, limits)")

@@ -34,9 +34,16 @@ class Reference:
     acceleration: np.ndarray  # (N, 3) per s^2
 
 
+MAX_SAMPLES = 400_000      # controller periods of one run: 1000 s at 400 Hz, about a minute of simulation
+
+
 def _samples(duration: float, period: float) -> np.ndarray:
     if not (np.isfinite(duration) and duration > 0):
         raise RcmKinError(f"the duration must be a positive number of seconds, got {duration}")
+    samples = duration / period + 1
+    if samples > MAX_SAMPLES:
+        raise RcmKinError(f"{duration:g} s at {1 / period:g} Hz is {samples:,.0f} controller periods; the limit is "
+                          f"{MAX_SAMPLES:,} (about a minute of simulation): shorten the duration or lower the rate")
     return np.arange(int(round(duration / period)) + 1) * period
 
 
