@@ -14,6 +14,7 @@ import pytest
 from rcm_kin import RcmKinError
 from rcm_kin.cli import main
 from rcm_kin.dynamics.drive import DEFAULT_PARAMETERS, load_drive_parameters
+from rcm_kin.errors import JointLimitError, LogDataError, ParameterFileError, WorkLimitError
 
 SHIPPED = DEFAULT_PARAMETERS.read_text()
 
@@ -66,7 +67,7 @@ def step_log(path: Path, rows: int = 1200, bad: str | None = None) -> Path:
 ])
 def test_drive_file_values_are_checked_where_read(tmp_path, old, new, key):
     path = drive_file(tmp_path, old, new)
-    with pytest.raises(RcmKinError, match=key) as raised:
+    with pytest.raises(ParameterFileError, match=key) as raised:
         load_drive_parameters(path)
     assert str(path) in str(raised.value)
 
@@ -159,6 +160,21 @@ def test_bad_log_rows_are_an_error_not_a_collapsed_fit(capsys, tmp_path, bad, co
     assert "data row 601" in err and "/t/roll/position" in err
 
 
+def test_bad_log_rows_in_the_library_are_a_log_data_error(tmp_path):
+    from rcm_kin.identification.telemetry import load_telemetry
+
+    with pytest.raises(LogDataError, match="100 rows"):
+        load_telemetry(step_log(tmp_path / "bad.csv", bad="inf"))
+    assert load_telemetry(step_log(tmp_path / "good.csv")).time.size == 1200
+
+
+def test_work_limits_in_the_library(psm, params):
+    from rcm_kin.statics.gravity_map import MAX_POSES, gravity_map
+
+    with pytest.raises(WorkLimitError, match="GB"):
+        gravity_map(psm, params, np.zeros(MAX_POSES + 1), [0.0], [0.08])
+
+
 def test_binary_trajectory_is_an_error(capsys, tmp_path):
     binary = tmp_path / "t.csv"
     binary.write_bytes(bytes(range(256)) * 4)
@@ -246,5 +262,5 @@ def test_python_api_raises_rcm_kin_errors(psm):
         load_robot(None)
     with pytest.raises(RcmKinError, match="joint values must be numbers"):
         forward_kinematics(psm, "abc")
-    with pytest.raises(RcmKinError, match="roll 90 deg not in"):
+    with pytest.raises(JointLimitError, match="roll 90 deg not in"):
         psm.check_limits(psm.check_q([np.radians(90)], allow_short=True))

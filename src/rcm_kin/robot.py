@@ -18,7 +18,7 @@ import pinocchio as pin
 from rcm_kin.closure.constrained import build_constraint_models, closure_residual
 from rcm_kin.closure.description import RobotDescription, read_description
 from rcm_kin.closure.reduced import build_reduced_model, tree_configuration
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import JointLimitError, RcmKinError
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, base frame (z up) of every bundled robot
 
@@ -117,7 +117,7 @@ class Robot:
         if np.any(outside):
             shown = lambda i, x: (f"{np.degrees(x):.6g} deg" if self.joint_kind(self.actuated[i]) == "revolute"  # noqa: E731
                                   else f"{x:.6g} m")
-            raise RcmKinError("outside the joint limits: " + "; ".join(
+            raise JointLimitError("outside the joint limits: " + "; ".join(
                 f"{self.actuated[i]} {shown(i, q[i])} not in [{shown(i, self.lower[i])}, {shown(i, self.upper[i])}]"
                 for i in np.flatnonzero(outside)))
         return q

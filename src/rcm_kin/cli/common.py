@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import NonFiniteResultError, RcmKinError
 from rcm_kin.robot import load_robot, robot_names
 
 RAW = argparse.RawDescriptionHelpFormatter      # keeps the epilogs' example lines
@@ -136,7 +136,7 @@ def emit(args, payload: dict, text: str) -> None:
     in ``payload`` is a user error naming where it is: a result is finite or it is not printed."""
     where = _non_finite(payload)
     if where:
-        raise RcmKinError(f"the result is not finite ({where}): the inputs are outside what the model can "
+        raise NonFiniteResultError(f"the result is not finite ({where}): the inputs are outside what the model can "
                           "compute; check the parameter file and the numbers given")
     print(json.dumps(payload, allow_nan=False) if getattr(args, "json", False) else text)
 

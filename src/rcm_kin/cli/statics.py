@@ -78,12 +78,15 @@ def cmd_gravity(args) -> None:
 
 def cmd_torque_map(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.statics.gravity_map import parse_range, write_gravity_maps
+    from rcm_kin.statics.gravity_map import check_map_size, parse_range, write_gravity_maps
 
     require_psm(args, "torque maps are for the PSM's driven joints: rcm-kin torque-map psm ...")
     robot = load_robot("psm", counterweights=not args.no_counterweights)
     drive = load_drive_parameters(args.params)
     roll, pitch = (np.linspace(*parse_range(t, w)) for t, w in ((args.roll, "--roll"), (args.pitch, "--pitch")))
+    check_map_size(roll.size * pitch.size)           # size and limits before the output folder is made
+    for corner in ((roll[0], pitch[0]), (roll[-1], pitch[-1])):
+        robot.check_limits(robot.check_q([*np.radians(corner), args.insertion], allow_short=True))
     gmap, files = write_gravity_maps(robot, drive, roll, pitch, args.insertion, output_folder(args.out),
                                      progress=progress_wanted(args))
     payload = {"files": [str(f) for f in files], "poses": int(gmap.effort.tau[..., 0].size)}

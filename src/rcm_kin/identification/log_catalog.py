@@ -20,11 +20,12 @@ without the pitch is skipped for lack of its pose.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import islice
 from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry
 
 HOLD = 0.5            # s a step's PWM must hold before and after its one change
@@ -64,12 +65,18 @@ def classify(log: TelemetryLog, joint: str) -> tuple[str, str]:
     return ("step" if step else "closed-loop"), ""
 
 
+MAX_LOGS = 1000       # CSV files one search may find
+
+
 def catalog(paths, joints=("roll", "pitch")) -> list[CatalogEntry]:
     """Every CSV log in ``paths`` (files or folders, searched recursively) for each joint."""
     files = []
     for path in map(Path, paths):
         if path.is_dir():
-            files += sorted(path.glob("**/*.csv"))
+            found = list(islice(path.glob("**/*.csv"), MAX_LOGS + 1))   # bounded: not a whole disk
+            if len(found) > MAX_LOGS:
+                raise WorkLimitError(f"more than {MAX_LOGS} CSV files below {path}: give the folder of the logs")
+            files += sorted(found)
         elif path.is_file():
             files.append(path)
         else:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import LogDataError, RcmKinError
 
 JOINTS = ("roll", "pitch", "insertion")
 _TIME_COLUMNS = ("/psm_joint_telemetry/header/stamp", "__time", "time")
@@ -72,7 +72,7 @@ def load_telemetry(path: str | Path) -> TelemetryLog:
     bad = ~np.isfinite(data[:, used])
     if np.any(bad):          # dropping rows would leave a time gap the fits read as dynamics
         row, col = np.argwhere(bad)[0]
-        raise RcmKinError(f"{path}: {np.count_nonzero(np.any(bad, axis=1))} rows with a missing or non-finite value, "
+        raise LogDataError(f"{path}: {np.count_nonzero(np.any(bad, axis=1))} rows with a missing or non-finite value, "
                           f"the first in data row {row + 1}, column '{header[used[col]]}'; clean the log (rows are "
                           "not dropped: the gap would be read as dynamics)")
     pick = lambda q: {j: data[:, columns[(j, q)]] for j in JOINTS if columns[(j, q)] is not None}  # noqa: E731

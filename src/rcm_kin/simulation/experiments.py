@@ -16,7 +16,7 @@ import numpy as np
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, schedule_gains
 from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.state_space import driven_dynamics
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.robot import load_robot
 from rcm_kin.simulation.controllers import make_controller
 from rcm_kin.simulation.firmware import FirmwareSettings
@@ -100,7 +100,7 @@ def check_in_limits(result: SimulationResult) -> None:
     if np.any(bad):
         k, j = np.argwhere(bad)[0]
         unit, scale = ("m", 1.0) if j == 2 else ("deg", 180 / np.pi)
-        raise RcmKinError(f"the simulated {('roll', 'pitch', 'insertion')[j]} reached {position[k, j] * scale:.4g} "
+        raise JointLimitError(f"the simulated {('roll', 'pitch', 'insertion')[j]} reached {position[k, j] * scale:.4g} "
                           f"{unit} at t = {result.time[k]:.3f} s, outside its joint range [{lower[j] * scale:.4g}, "
                           f"{upper[j] * scale:.4g}] {unit}: the closed loop does not hold the robot in its range "
                           "with these settings (controller, rate, limits)")

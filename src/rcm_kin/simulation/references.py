@@ -15,7 +15,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from rcm_kin.control.thesis_reference import SINE_AMPLITUDE_DEG, SINE_CYCLE_S
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.kinematics.teleop import default_teleop_map, teleop_joint_targets
 
@@ -42,7 +42,7 @@ def _samples(duration: float, period: float) -> np.ndarray:
         raise RcmKinError(f"the duration must be a positive number of seconds, got {duration}")
     samples = duration / period + 1
     if samples > MAX_SAMPLES:
-        raise RcmKinError(f"{duration:g} s at {1 / period:g} Hz is {samples:,.0f} controller periods; the limit is "
+        raise WorkLimitError(f"{duration:g} s at {1 / period:g} Hz is {samples:,.0f} controller periods; the limit is "
                           f"{MAX_SAMPLES:,} (about a minute of simulation): shorten the duration or lower the rate")
     return np.arange(int(round(duration / period)) + 1) * period
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from rcm_kin.dynamics.drive import DRIVEN, DriveEffort, DriveParameters, drive_effort, load_drive_parameters
 from rcm_kin.dynamics.gravity import gravity_batch
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, WorkLimitError
 
 if TYPE_CHECKING:
     from rcm_kin.robot import Robot
@@ -31,7 +31,7 @@ def check_map_size(poses: int) -> None:
     """Refuse a map of more than :data:`MAX_POSES` poses before anything is allocated, saying what it
     would need."""
     if poses > MAX_POSES:
-        raise RcmKinError(f"a map of {poses:,} poses would need about {poses * BYTES_PER_POSE / 1e9:.3g} GB; "
+        raise WorkLimitError(f"a map of {poses:,} poses would need about {poses * BYTES_PER_POSE / 1e9:.3g} GB; "
                           f"the limit is {MAX_POSES:,} poses (e.g. 1000 x 1000): use fewer points per axis")
 
 
