@@ -32,7 +32,7 @@ from hypothesis import strategies as st
 
 from rcm_kin.cli import main
 
-EXAMPLES = int(os.environ.get("RCM_KIN_FUZZ_EXAMPLES", "25"))   # cases per command
+EXAMPLES = int(os.environ.get("RCM_KIN_FUZZ_EXAMPLES", "20"))   # cases per command
 SURVEY = os.environ.get("RCM_KIN_FUZZ_SURVEY")
 CASE_SECONDS = 30          # a case that runs longer has no bound on its work
 CASE_BYTES = 8 << 30       # address space of the whole test process during a case
