@@ -264,3 +264,15 @@ def test_python_api_raises_rcm_kin_errors(psm):
         forward_kinematics(psm, "abc")
     with pytest.raises(JointLimitError, match="roll 90 deg not in"):
         psm.check_limits(psm.check_q([np.radians(90)], allow_short=True))
+
+
+def test_a_failed_report_still_has_an_index_saying_so(capsys, tmp_path, monkeypatch):
+    import rcm_kin.report.sections.robots as robots
+
+    def fail(out):
+        raise RcmKinError("robot views failed <here>")
+
+    monkeypatch.setattr(robots, "robots_section", fail)
+    assert_one_line_error(capsys, ["report", "--out", tmp_path / "r", "--json"], "robot views failed <here>")
+    index = (tmp_path / "r" / "index.html").read_text()
+    assert "not completed" in index and "robot views failed &lt;here&gt;" in index

@@ -59,9 +59,7 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:                 # --help, --version (0) and usage errors (2, already printed)
         return exc.code if isinstance(exc.code, int) else 0
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        warnings.filterwarnings("ignore", category=DeprecationWarning)
+    with warnings.catch_warnings(record=True) as caught:     # the filters in force decide what is recorded
         try:
             args.func(args)
         except (RcmKinError, OSError) as exc:
