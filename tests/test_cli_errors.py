@@ -20,7 +20,10 @@ SHIPPED = DEFAULT_PARAMETERS.read_text()
 
 
 def run(capsys, *argv):
-    code = main([str(a) for a in argv])
+    try:
+        code = main([str(a) for a in argv])
+    except SystemExit as exc:          # argparse's usage errors and --version exit, as before
+        code = exc.code
     out, err = capsys.readouterr()
     return code, out, err
 

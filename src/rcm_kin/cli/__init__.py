@@ -55,12 +55,10 @@ def main(argv: list[str] | None = None) -> int:
     Warnings raised while the command runs are held back: on success each is one line
     ``warning: ...`` on stderr; on an error only the error line is printed.
     """
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:                 # --help, --version (0) and usage errors (2, already printed)
-        return exc.code if isinstance(exc.code, int) else 0
+    parser = build_parser()
     with warnings.catch_warnings(record=True) as caught:     # the filters in force decide what is recorded
         try:
+            args = parser.parse_args(argv)    # a usage error exits here (status 2), as argparse does
             args.func(args)
         except (RcmKinError, OSError) as exc:
             return _fail(_message(exc), 2)

@@ -29,6 +29,24 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str):  # noqa: D102 - argparse API
         self.exit(2, f"error: {message} (see: {self.prog} --help)\n")
 
+    def _get_value(self, action, arg_string):
+        """argparse's conversion, with a value refused by one of our types (:class:`BadValue`)
+        turned into an :class:`ArgumentValueError` naming the argument (the command's user error,
+        status 2 from :func:`rcm_kin.cli.main`, like any other bad value)."""
+        try:
+            return super()._get_value(action, arg_string)
+        except BadValue as exc:
+            name = "/".join(action.option_strings) or action.metavar or action.dest
+            raise ArgumentValueError(f"{name}: {exc}") from None
+
+
+class BadValue(Exception):
+    """Raised by the argument types below: not a ValueError, so that argparse passes it on."""
+
+
+class ArgumentValueError(RcmKinError):
+    """A command-line value outside what its argument accepts (the argument is named)."""
+
 
 def robot_parent(help_text: str) -> argparse.ArgumentParser:
     """Parent parser of a command whose first argument is a robot name."""
@@ -68,29 +86,31 @@ def _shown(word: str) -> str:
 
 def finite(lo: float = -math.inf, hi: float = math.inf, unit: str = "", open_lo: bool = False):
     """argparse ``type``: a finite number within [lo, hi] (``open_lo``: above ``lo``), in ``unit``."""
+    bounded = math.isfinite(lo) or math.isfinite(hi)
+    span = (f" in {'(' if open_lo else '['}{lo:g}, {hi:g}]" if bounded else "") + (f" {unit}" if unit else "")
+
     def parse(word: str) -> float:
-        span = f"{'(' if open_lo else '['}{lo:g}, {hi:g}]{' ' + unit if unit else ''}"
         try:
             value = float(word)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"needs a number in {span}, got {_shown(word)}") from None
+            raise BadValue(f"needs a number{span}, got {_shown(word)}") from None
         if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"needs a finite number in {span}, got {_shown(word)}")
+            raise BadValue(f"needs a finite number{span}, got {_shown(word)}")
         if value < lo or value > hi or (open_lo and value == lo):
-            raise argparse.ArgumentTypeError(f"needs a number in {span}, got {_shown(word)}")
+            raise BadValue(f"needs a number{span}, got {_shown(word)}")
         return value
     return parse
 
 
-def count(lo: int, hi: int):
-    """argparse ``type``: a whole number within [lo, hi] (a bound on the work it asks for)."""
+def count(lo: int, hi: int, what: str = ""):
+    """argparse ``type``: a whole number of ``what`` within [lo, hi] (a bound on the work it asks for)."""
     def parse(word: str) -> int:
         try:
             value = int(word)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{_shown(word)} is not a whole number") from None
+            raise BadValue(f"needs a whole number{' of ' + what if what else ''}, got {_shown(word)}") from None
         if not lo <= value <= hi:
-            raise argparse.ArgumentTypeError(f"needs at least {lo} and at most {hi:,}, got {_shown(word)}")
+            raise BadValue(f"needs at least {lo} and at most {hi:,}{' ' + what if what else ''}, got {_shown(word)}")
         return value
     return parse
 
@@ -98,7 +118,7 @@ def count(lo: int, hi: int):
 def path_text(word: str) -> str:
     """argparse ``type``: a non-empty path."""
     if not word.strip():
-        raise argparse.ArgumentTypeError("an empty path")
+        raise BadValue("an empty path")
     return word
 
 

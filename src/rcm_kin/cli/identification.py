@@ -28,8 +28,8 @@ def add_sysid(sub) -> None:
     p.add_argument("--method", choices=("step", "prbs"),
                    help="step: trimmed open-loop step; prbs: whole record about its means (default: roll step, "
                         "pitch prbs)")
-    p.add_argument("--order", type=count(1, 10), help="number of poles, 1 to 10 (default 2 for step, 3 for prbs)")
-    p.add_argument("--zeros", type=count(0, 9), help="number of zeros, fewer than the poles (default order - 1)")
+    p.add_argument("--order", type=count(1, 10, "poles"), help="number of poles, 1 to 10 (default 2 for step, 3 for prbs)")
+    p.add_argument("--zeros", type=count(0, 9, "zeros"), help="number of zeros, fewer than the poles (default order - 1)")
     p.add_argument("--samples", type=count(50, MAX_SAMPLES), default=1000,
                    help=f"step: samples kept from the step, 50 to {MAX_SAMPLES:,} (default 1000)")
     p.add_argument("--segment", type=count(10, MAX_SAMPLES),
