@@ -279,3 +279,32 @@ def test_a_failed_report_still_has_an_index_saying_so(capsys, tmp_path, monkeypa
     assert_one_line_error(capsys, ["report", "--out", tmp_path / "r", "--json"], "robot views failed <here>")
     index = (tmp_path / "r" / "index.html").read_text()
     assert "not completed" in index and "robot views failed &lt;here&gt;" in index
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="reads the process tree from Linux /proc")
+def test_sigterm_on_view_stops_its_meshcat_server(tmp_path):
+    """A served view stopped by SIGTERM (as a supervisor or `kill` would) takes its server with it."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "rcm_kin.cli", "view", "psm"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    children = []
+    try:
+        for line in proc.stdout:
+            if line.startswith("serving"):
+                break
+        children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
+        assert children, "the meshcat server runs as a child process"
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=60) == 0
+        assert not [c for c in children if Path(f"/proc/{c}").exists()]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        for child in children:                  # no orphan left behind even when the test fails
+            if Path(f"/proc/{child}").exists():
+                os.kill(int(child), signal.SIGKILL)
