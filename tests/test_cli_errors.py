@@ -115,7 +115,7 @@ def test_one_point_torque_map_is_the_gravity_command_at_that_pose(capsys, tmp_pa
     (["torque-map", "psm", "--roll=5:6:1", "--out", "m"], "LO = HI and N = 1"),
     (["simulate", "psm", "--experiment", "sine", "--controller", "p", "--duration", "1e6"], "(0, 10000] s"),
     (["simulate", "psm", "--experiment", "sine", "--controller", "p", "--duration", "5000"],
-     "2,000,001 controller periods; the limit is 400,000"),
+     "2,000,001 controller periods; the limit is 200,000"),
     (["simulate", "psm", "--experiment", "sine", "--controller", "p", "--rate", "1e9"], "[1, 100000] Hz"),
     (["schedule", "psm", "--check-points", "100000", "--out", "g"], "at most 201"),
     (["report", "--out", "r", "--map-points", "100000"], "at most 1,000"),

@@ -94,7 +94,7 @@ def _write_files(root: Path) -> dict[str, list[str]]:
              "out_dir": ["", *p("unrelated.txt")],
              "png": ["", *p("view.txt", "missing/x.png")], "html": ["", *p("empty_dir", "missing/x.html")]}
     valid = {"params": p("params_good.toml"), "log": p("log_good.csv"), "trajectory": p("trajectory.csv"),
-             "out_file": p("new.toml", "fresh.csv"), "out_dir": p("out_dir", "missing/deep"),
+             "out_file": p("new.toml", "fresh.csv"), "out_dir": p("out_dir", "new_dir/deep"),
              "png": p("view.png"), "html": p("view.html")}
     NEVER_VALID.update(w for pool in never.values() for w in pool)
     return {kind: (valid[kind], never[kind]) for kind in valid}
@@ -275,7 +275,7 @@ def _reject_constant(name: str):
     raise ValueError(f"not strict JSON: {name}")
 
 
-NULL_BY_CONTRACT = {"certificate"}      # JSON keys whose null means "none", not a failed number
+NULL_BY_CONTRACT = {"certificate", "segment_samples"}   # JSON keys whose null means "none", not a failed number
 NON_FINITE_TEXT = re.compile(r"(?<![\w.])[-+]?(nan|inf|infinity)(?![\w])", re.IGNORECASE)
 
 

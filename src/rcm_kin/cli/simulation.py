@@ -29,7 +29,7 @@ def add_simulate(sub) -> None:
                         "holding PWM; scheduled-friction: plus the sliding-friction compensation on the reference "
                         "velocity; thesis: the thesis's flashed gain tables and law (Tables 4.4-4.8)")
     p.add_argument("--duration", type=finite(0, 1e4, "s", open_lo=True),
-                   help="simulated seconds (default: sine 6, step 3, target: recording; at most 400,000 controller "
+                   help="simulated seconds (default: sine 6, step 3, target: recording; at most 200,000 controller "
                         "periods)")
     p.add_argument("--trajectory", type=path_text, help="MTM recording CSV (unix_time,x,y,z in m) for --experiment target "
                                         "(default: the bundled figure-eight)")

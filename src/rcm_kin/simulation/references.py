@@ -34,7 +34,7 @@ class Reference:
     acceleration: np.ndarray  # (N, 3) per s^2
 
 
-MAX_SAMPLES = 400_000      # controller periods of one run: 1000 s at 400 Hz, about a minute of simulation
+MAX_SAMPLES = 200_000      # controller periods of one run: 500 s at 400 Hz, one to two minutes of simulation
 
 
 def _samples(duration: float, period: float) -> np.ndarray:
@@ -43,7 +43,7 @@ def _samples(duration: float, period: float) -> np.ndarray:
     samples = duration / period + 1
     if samples > MAX_SAMPLES:
         raise WorkLimitError(f"{duration:g} s at {1 / period:g} Hz is {samples:,.0f} controller periods; the limit is "
-                          f"{MAX_SAMPLES:,} (about a minute of simulation): shorten the duration or lower the rate")
+                          f"{MAX_SAMPLES:,} (one to two minutes of simulation): shorten the duration or lower the rate")
     return np.arange(int(round(duration / period)) + 1) * period
 
 

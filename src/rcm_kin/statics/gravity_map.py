@@ -23,8 +23,8 @@ if TYPE_CHECKING:
     from rcm_kin.robot import Robot
 
 
-MAX_POSES = 1_000_000     # poses of one map: about 0.3 GB of arrays and a minute of work
-BYTES_PER_POSE = 8 * (16 + 6 * 3) + 200   # the pose row, gravity and drive arrays, and its CSV line
+MAX_POSES = 1_000_000     # poses of one map: about 0.7 GB and two minutes of work
+BYTES_PER_POSE = 720      # peak memory per pose, measured: 300 x 300 poses took 65 MB more than 10 x 10
 
 
 def check_map_size(poses: int) -> None:
