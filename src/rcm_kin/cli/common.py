@@ -30,7 +30,7 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {message} (see: {self.prog} --help)\n")
 
     def _get_value(self, action, arg_string):
-        """argparse's conversion, with a value refused by one of our types (:class:`BadValue`)
+        """argparse's (private, stable) conversion, with a value refused by one of our types (:class:`BadValue`)
         turned into an :class:`ArgumentValueError` naming the argument (the command's user error,
         status 2 from :func:`rcm_kin.cli.main`, like any other bad value)."""
         try:
@@ -156,8 +156,8 @@ def emit(args, payload: dict, text: str) -> None:
     in ``payload`` is a user error naming where it is: a result is finite or it is not printed."""
     where = _non_finite(payload)
     if where:
-        raise NonFiniteResultError(f"the result is not finite ({where}): the inputs are outside what the model can "
-                          "compute; check the parameter file and the numbers given")
+        raise NonFiniteResultError(f"the result is not finite ({where}): the inputs are outside what the model "
+                                   "can compute; check the parameter file and the numbers given")
     print(json.dumps(payload, allow_nan=False) if getattr(args, "json", False) else text)
 
 

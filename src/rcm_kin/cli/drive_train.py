@@ -23,7 +23,8 @@ EPILOG_PREDICT = ("example: rcm-kin predict psm roll_step_response_roll_0_pitch_
 def add_identify(sub) -> None:
     p = sub.add_parser("identify", help="identify the drive trains (stick-slip friction, inertia) from logs",
                        parents=[psm_robot()], epilog=EPILOG_IDENTIFY, formatter_class=RAW)
-    p.add_argument("logs", nargs="+", metavar="DIR_OR_FILE", type=path_text, help="telemetry CSV logs, or folders searched for them")
+    p.add_argument("logs", nargs="+", metavar="DIR_OR_FILE", type=path_text,
+                   help="telemetry CSV logs, or folders searched for them")
     p.add_argument("--out", required=True, help="drive parameter TOML to write (the --params set with the "
                                                 "identified drive trains)")
     p.add_argument("--joint", nargs="+", choices=("roll", "pitch"), default=["roll"],

@@ -22,14 +22,17 @@ EPILOG_GREYBOX = ("example: rcm-kin greybox psm-sysid/roll-step --joint roll --o
 def add_sysid(sub) -> None:
     p = sub.add_parser("sysid", help="transfer-function identification from telemetry logs (step or PRBS)",
                        epilog=EPILOG_SYSID, formatter_class=RAW)
-    p.add_argument("log", metavar="LOG", type=path_text, help="telemetry CSV (position = measured deg, velocity = PWM), or a "
-                                             "folder of logs named ..._roll_R_pitch_P.csv")
+    p.add_argument("log", metavar="LOG", type=path_text,
+                   help="telemetry CSV (position = measured deg, velocity = PWM), or a "
+                        "folder of logs named ..._roll_R_pitch_P.csv")
     p.add_argument("--joint", required=True, choices=("roll", "pitch"))
     p.add_argument("--method", choices=("step", "prbs"),
                    help="step: trimmed open-loop step; prbs: whole record about its means (default: roll step, "
                         "pitch prbs)")
-    p.add_argument("--order", type=count(1, 10, "poles"), help="number of poles, 1 to 10 (default 2 for step, 3 for prbs)")
-    p.add_argument("--zeros", type=count(0, 9, "zeros"), help="number of zeros, fewer than the poles (default order - 1)")
+    p.add_argument("--order", type=count(1, 10, "poles"),
+                   help="number of poles, 1 to 10 (default 2 for step, 3 for prbs)")
+    p.add_argument("--zeros", type=count(0, 9, "zeros"),
+                   help="number of zeros, fewer than the poles (default order - 1)")
     p.add_argument("--samples", type=count(50, MAX_SAMPLES), default=1000,
                    help=f"step: samples kept from the step, 50 to {MAX_SAMPLES:,} (default 1000)")
     p.add_argument("--segment", type=count(10, MAX_SAMPLES),
@@ -45,7 +48,8 @@ def add_sysid(sub) -> None:
 def add_greybox(sub) -> None:
     p = sub.add_parser("greybox", help="fit extra inertia and friction to open-loop step logs by simulating the "
                                        "physics", epilog=EPILOG_GREYBOX, formatter_class=RAW)
-    p.add_argument("logs", nargs="+", metavar="LOG", type=path_text, help="step logs (telemetry CSV) or folders of them")
+    p.add_argument("logs", nargs="+", metavar="LOG", type=path_text,
+                   help="step logs (telemetry CSV) or folders of them")
     p.add_argument("--joint", required=True, choices=("roll", "pitch"))
     p.add_argument("--samples", type=count(50, MAX_SAMPLES), default=1000,
                    help=f"samples kept from each step, 50 to {MAX_SAMPLES:,} (default 1000)")

@@ -34,7 +34,8 @@ def add_safety(sub) -> None:
                         "state; 4: second-order error state")
     s.add_argument("--delta", type=LENGTH, help="separation of the initial and unsafe sets in m (thesis: 0.001, "
                                                "0.015, 0.004, 0.005)")
-    s.add_argument("--error-bound", type=LENGTH, help="programs 3-4: unsafe error beyond this in m (thesis 0.009, 0.008)")
+    s.add_argument("--error-bound", type=LENGTH,
+                   help="programs 3-4: unsafe error beyond this in m (thesis 0.009, 0.008)")
     s.add_argument("--r-max", type=LENGTH, help="program 2: largest reference in m (thesis 0.017)")
     s.add_argument("--eps-bar", type=LENGTH, help="B on the unsafe set at least this (thesis 0.001, 0.1, 0.01, 0.05)")
     add_json(s, '{"feasible", "certificate", "sampling_check", ...}')

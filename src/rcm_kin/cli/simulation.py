@@ -31,8 +31,9 @@ def add_simulate(sub) -> None:
     p.add_argument("--duration", type=finite(0, 1e4, "s", open_lo=True),
                    help="simulated seconds (default: sine 6, step 3, target: recording; at most 200,000 controller "
                         "periods)")
-    p.add_argument("--trajectory", type=path_text, help="MTM recording CSV (unix_time,x,y,z in m) for --experiment target "
-                                        "(default: the bundled figure-eight)")
+    p.add_argument("--trajectory", type=path_text,
+                   help="MTM recording CSV (unix_time,x,y,z in m) for --experiment target "
+                        "(default: the bundled figure-eight)")
     p.add_argument("--rate", type=finite(1, 1e5, "Hz"), default=RATE,
                    help=f"controller rate in Hz (1 to 100000, default {RATE:g})")
     p.add_argument("--pwm-limit", nargs=3, metavar=("ROLL", "PITCH", "INS"),
@@ -59,7 +60,8 @@ def cmd_simulate(args) -> None:
     limits = {"pwm_limit": floats(args.pwm_limit, "--pwm-limit")} if args.pwm_limit else {}
     settings = FirmwareSettings(period=1.0 / args.rate, noise_counts=args.noise_counts, **limits)
     result = run_experiment(args.experiment, args.controller, args.duration, load_drive_parameters(args.params),
-                            settings, args.trajectory, seed=args.seed, progress=progress_wanted(args) and sys.stderr.isatty())
+                            settings, args.trajectory, seed=args.seed,
+                            progress=progress_wanted(args) and sys.stderr.isatty())
     metrics = tracking_metrics(result, args.skip)
     payload = {axis: vars(m) for axis, m in metrics.items()}
     lines = [f"{args.experiment} with {args.controller}, {result.time[-1]:.2f} s at {args.rate:g} Hz:"] + [

@@ -29,8 +29,10 @@ def add_gravity(sub) -> None:
 def add_torque_map(sub) -> None:
     p = sub.add_parser("torque-map", help="holding torque/voltage/PWM over roll x pitch (CSV + PNG)",
                        parents=[psm_robot()], epilog=EPILOG_TORQUE_MAP, formatter_class=RAW)
-    p.add_argument("--roll", default="-30:30:61", help="roll grid LO:HI:N in degrees, N >= 2 (or LO:LO:1, one value; default -30:30:61)")
-    p.add_argument("--pitch", default="-30:30:61", help="pitch grid LO:HI:N in degrees, N >= 2 (or LO:LO:1; default -30:30:61; at most "
+    p.add_argument("--roll", default="-30:30:61",
+                   help="roll grid LO:HI:N in degrees, N >= 2 (or LO:LO:1, one value; default -30:30:61)")
+    p.add_argument("--pitch", default="-30:30:61",
+                   help="pitch grid LO:HI:N in degrees, N >= 2 (or LO:LO:1; default -30:30:61; at most "
                         "1,000,000 poses in all)")
     p.add_argument("--insertion", type=finite(unit="m"), default=HOME_INSERTION,
                    help=f"insertion in m (default {HOME_INSERTION:g})")

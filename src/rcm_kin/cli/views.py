@@ -34,8 +34,9 @@ def add_report(sub) -> None:
     p = sub.add_parser("report", help="run the main job on the bundled models and write index.html",
                        epilog=EPILOG_REPORT)
     p.add_argument("--out", required=True, type=path_text, help="output folder (created)")
-    p.add_argument("--data", type=path_text, help="folder of measured logs (psm-sysid layout): adds calibration, identification "
-                                  "per pose and the grey-box fit, and uses its MTM recording for target following")
+    p.add_argument("--data", type=path_text,
+                   help="folder of measured logs (psm-sysid layout): adds calibration, identification "
+                        "per pose and the grey-box fit, and uses its MTM recording for target following")
     p.add_argument("--map-points", type=count(2, int(MAX_POSES**0.5)), default=61,
                    help=f"poses per axis of the holding-effort maps over +-30 deg (2 to {int(MAX_POSES**0.5)}, "
                         "default 61)")
