@@ -117,8 +117,9 @@ def words(valid: list[str], hostile: list[str]) -> tuple[list[str], list[str]]:
 
 def specs(files: dict[str, list[str]]) -> dict[str, dict]:
     """Per command: the words it starts with, its positionals (pools; a list pool of lists is nargs),
-    its required and optional options (name -> pool, or None for a flag), and the slow flag (a slow
-    command gets at least one hostile value, so that CI does not run its minute-long work)."""
+    its required and optional options (name -> pool, or None for a flag), the slow flag (a slow
+    command gets at least one hostile value, so that CI does not run its minute-long work) and the
+    share of the example budget (torque-map: half, each valid case draws three figures)."""
     robots = words(["psm", "mtm", "davinci"], ["kuka", "", "PSM"])
     joint_q = numbers("0", "0.1", "-0.2", "0.08", "30", "-30", "90", "0.5")
     params = {"--params": files["params"]}
@@ -132,7 +133,7 @@ def specs(files: dict[str, list[str]]) -> dict[str, dict]:
                        "--json": None}},
         "gravity": {"argv": ["gravity"], "pos": [robots, joint_q, joint_q, joint_q],
                     "opt": {"--deg": None, "--no-counterweights": None, "--json": None, **params}},
-        "torque-map": {"argv": ["torque-map", "psm"], "req": {"--out": files["out_dir"]},
+        "torque-map": {"argv": ["torque-map", "psm"], "req": {"--out": files["out_dir"]}, "share": 0.5,
                        "opt": {"--roll": words(["-30:30:5", "0:10:2"],
                                                ["0:0:1", "-30:30:100000", "30:-30:5", "a:b:c", "", "nan:1:3",
                                                 "0:1e300:3", "-1e300:1e300:3", "0:1:0"]),
@@ -241,6 +242,10 @@ class _Unbounded(Exception):
     """A case ran past CASE_SECONDS."""
 
 
+class _WouldServe(Exception):
+    """``view`` without a file reached the live meshcat server (which would run until stopped)."""
+
+
 def _alarm(signum, frame):
     raise _Unbounded(f"ran longer than {CASE_SECONDS} s")
 
@@ -262,6 +267,8 @@ def run_case(argv: list[str]) -> dict:
             warnings.showwarning = show
             try:
                 status = main(argv)
+            except _WouldServe:               # the valid end of ``view`` without --png/--html
+                status = 0
             except SystemExit as exc:
                 status = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     except (_Unbounded, MemoryError) as exc:
@@ -335,14 +342,15 @@ def workspace(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def no_server():
-    """``view`` without a file would serve forever: make that an immediate, visible finding."""
+    """``view`` without a file serves until stopped: a case ends (status 0) where the server would start,
+    so that a hostile ``--png ''`` that falls through to serving is seen as accepted."""
     import meshcat
 
     original = meshcat.Visualizer
 
     def refuse(*args, window=None, **kwargs):
         if window is None:
-            raise AssertionError("view started a meshcat server")
+            raise _WouldServe
         return original(*args, window=window, **kwargs)
 
     meshcat.Visualizer = refuse
@@ -359,7 +367,7 @@ COMMANDS = ["info", "fk", "ik", "gravity", "torque-map", "calibrate", "dynamics"
 def test_fuzz_command(command, workspace, no_server):
     spec = specs(workspace)[command]
 
-    @settings(max_examples=EXAMPLES, derandomize=True, deadline=None, database=None, print_blob=False,
+    @settings(max_examples=max(1, round(EXAMPLES * spec.get("share", 1))), derandomize=True, deadline=None, database=None, print_blob=False,
               suppress_health_check=list(HealthCheck))
     @given(argv_of(spec))
     def case(argv):

@@ -82,8 +82,8 @@ def _serve(robot, q, frames: tuple[str, ...]) -> None:
     def stop(signum, frame):
         raise KeyboardInterrupt
 
-    previous = signal.signal(signal.SIGTERM, stop)
     live = meshcat.Visualizer()            # starts the meshcat server and prints its URL
+    previous = signal.signal(signal.SIGTERM, stop)
     try:
         viz = robot_view(robot, window=live.window, frames=frames)
         show(viz, robot, q)
