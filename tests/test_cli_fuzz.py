@@ -308,6 +308,8 @@ def problems(argv: list[str], result: dict) -> list[str]:
     status, out, err = result["status"], result["out"], result["err"]
     if status not in (0, 2):
         found.append(f"exit status {status}")
+    if result["seconds"] > CASE_SECONDS:        # the alarm cannot interrupt every native call
+        found.append(f"ran {result['seconds']:.0f} s")
     if "Traceback" in err:
         found.append("traceback on stderr")
     if status == 2 and not (err.startswith("error: ") and err.count("\n") == 1):

@@ -20,7 +20,7 @@ without the pitch is skipped for lack of its pose.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from itertools import islice
+import os
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +66,19 @@ def classify(log: TelemetryLog, joint: str) -> tuple[str, str]:
 
 
 MAX_LOGS = 1000       # CSV files one search may find
+MAX_FOLDERS = 10_000  # folders one search may visit (a log folder, not a whole disk)
+
+
+def _csv_files(folder: Path) -> list[Path]:
+    """The ``*.csv`` files below ``folder``, sorted; a search past :data:`MAX_FOLDERS` folders or
+    :data:`MAX_LOGS` files is refused (unreadable folders are skipped)."""
+    found = []
+    for visited, (root, _, names) in enumerate(os.walk(folder), start=1):
+        found += [Path(root) / n for n in names if n.endswith(".csv")]
+        if visited > MAX_FOLDERS or len(found) > MAX_LOGS:
+            raise WorkLimitError(f"more than {MAX_FOLDERS} folders or {MAX_LOGS} CSV files below {folder}: "
+                                 "give the folder of the logs")
+    return sorted(found)
 
 
 def catalog(paths, joints=("roll", "pitch")) -> list[CatalogEntry]:
@@ -73,10 +86,7 @@ def catalog(paths, joints=("roll", "pitch")) -> list[CatalogEntry]:
     files = []
     for path in map(Path, paths):
         if path.is_dir():
-            found = list(islice(path.glob("**/*.csv"), MAX_LOGS + 1))   # bounded: not a whole disk
-            if len(found) > MAX_LOGS:
-                raise WorkLimitError(f"more than {MAX_LOGS} CSV files below {path}: give the folder of the logs")
-            files += sorted(found)
+            files += _csv_files(path)
         elif path.is_file():
             files.append(path)
         else:
