@@ -12,6 +12,26 @@ class RcmKinError(ValueError):
     """
 
 
+class ParameterFileError(RcmKinError):
+    """A parameter file holds a key, type or value outside its schema (the file and key are named)."""
+
+
+class JointLimitError(RcmKinError):
+    """A pose (given, or reached by a simulation) outside the joints' limits: refused, not computed."""
+
+
+class WorkLimitError(RcmKinError):
+    """A request that would need more memory or time than the stated bound (the message says how much)."""
+
+
+class LogDataError(RcmKinError):
+    """A measured log with missing or non-finite values where a fit needs numbers."""
+
+
+class NonFiniteResultError(RcmKinError):
+    """A computation gave NaN or an infinity: the inputs are outside what the model can compute."""
+
+
 def read_toml(path: Path, what: str) -> dict:
     """The parsed TOML file ``path``; a missing or malformed file is an RcmKinError naming ``what``."""
     try:

@@ -18,7 +18,7 @@ import pinocchio as pin
 from rcm_kin.closure.constrained import build_constraint_models, closure_residual
 from rcm_kin.closure.description import RobotDescription, read_description
 from rcm_kin.closure.reduced import build_reduced_model, tree_configuration
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import JointLimitError, RcmKinError
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, base frame (z up) of every bundled robot
 
@@ -99,12 +99,28 @@ class Robot:
     def check_q(self, q, *, allow_short: bool = False) -> np.ndarray:
         """``q`` as a float array of the actuated size, or a clear error. Short vectors are
         padded with zeros when ``allow_short``."""
-        q = np.atleast_1d(np.asarray(q, dtype=float))
+        try:
+            q = np.atleast_1d(np.asarray(q, dtype=float))
+        except (TypeError, ValueError):
+            raise RcmKinError(f"joint values must be numbers ({', '.join(self.actuated)}), got {str(q)[:60]!r}") from None
         if q.ndim != 1 or q.size > self.nq or (q.size < self.nq and not allow_short):
             raise RcmKinError(f"{self.name} takes {self.nq} joint values ({', '.join(self.actuated)}), got {q.size}")
         if not np.all(np.isfinite(q)):
             raise RcmKinError(f"joint values must be finite numbers, got {q.tolist()}")
         return np.concatenate([q, np.zeros(self.nq - q.size)])
+
+    def check_limits(self, q, tol: float = 1e-9) -> np.ndarray:
+        """``q`` (actuated, rad or m) unchanged, or a clear error naming every joint outside its limits.
+        The one joint-limit policy of rcm_kin: poses outside the limits are refused, not computed."""
+        q = np.asarray(q, dtype=float)
+        outside = (q < self.lower - tol) | (q > self.upper + tol)
+        if np.any(outside):
+            shown = lambda i, x: (f"{np.degrees(x):.6g} deg" if self.joint_kind(self.actuated[i]) == "revolute"  # noqa: E731
+                                  else f"{x:.6g} m")
+            raise JointLimitError("outside the joint limits: " + "; ".join(
+                f"{self.actuated[i]} {shown(i, q[i])} not in [{shown(i, self.lower[i])}, {shown(i, self.upper[i])}]"
+                for i in np.flatnonzero(outside)))
+        return q
 
     def joint_table(self) -> list[JointRow]:
         """Every joint of the open tree, in tree order, passive loop joints included."""
@@ -201,6 +217,9 @@ def _check_passive_relations(robot: Robot, tol: float = 1e-9) -> None:
 def load_robot(name: str, counterweights: bool = True) -> Robot:
     """A bundled robot by name (``psm``, ``mtm``) or any sidecar ``.toml`` by path; with
     ``counterweights=False`` the counterweight links carry no mass."""
+    if not isinstance(name, str):
+        raise RcmKinError(f"a robot is named by a string ({', '.join(robot_names())}) or a .toml path, "
+                          f"got {type(name).__name__}")
     if name.endswith(".toml"):
         path = Path(name)
     elif name in robot_names():

@@ -8,6 +8,8 @@ library, format.
 from __future__ import annotations
 
 import sys
+import warnings
+from importlib.metadata import PackageNotFoundError, version
 
 from rcm_kin.cli import (control, drive_train, export, identification, kinematics, robustness, safety, simulation,
                          statics, views)
@@ -36,6 +38,7 @@ def build_parser() -> Parser:
                 "          rcm-kin report --out report\n"
                 "every command: rcm-kin COMMAND --help (units and an example); --json for scripts"),
         formatter_class=RAW)
+    parser.add_argument("--version", action="version", version=f"rcm-kin {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for add in COMMANDS:
         add(sub)
@@ -45,16 +48,51 @@ def build_parser() -> Parser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run one command; 0 on success, 2 on a user error, 130 on Ctrl-C."""
-    args = build_parser().parse_args(argv)
+def _version() -> str:
     try:
-        with telemetry_topic(getattr(args, "topic", None)):
-            args.func(args)
-    except RcmKinError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 130
+        return version("rcm-kin")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one command; 0 on success, 2 on a user error, 130 on Ctrl-C.
+
+    The one place where errors become output: an :class:`RcmKinError` (and an operating-system
+    error on a file) is the single line ``error: ...`` on stderr, after any progress bar is cleared.
+    Warnings raised while the command runs are held back: on success each is one line
+    ``warning: ...`` on stderr; on an error only the error line is printed.
+    """
+    parser = build_parser()
+    with warnings.catch_warnings(record=True) as caught:     # the filters in force decide what is recorded
+        try:
+            args = parser.parse_args(argv)    # a usage error exits here (status 2), as argparse does
+            with telemetry_topic(getattr(args, "topic", None)):
+                args.func(args)
+        except (RcmKinError, OSError) as exc:
+            return _fail(_message(exc), 2)
+        except KeyboardInterrupt:
+            return _fail("interrupted", 130)
+    for message in dict.fromkeys(" ".join(str(w.message).split()) for w in caught):
+        print(f"warning: {message}", file=sys.stderr)
     return 0
+
+
+def _message(exc: Exception) -> str:
+    """One line: an RcmKinError's message, or an OSError's file and reason."""
+    if isinstance(exc, RcmKinError):
+        text = str(exc)
+    else:
+        text = f"cannot use {exc.filename}: {exc.strerror}" if exc.filename else f"{exc.strerror or exc}"
+    return " ".join(text.split())
+
+
+def _fail(message: str, status: int) -> int:
+    """Clear the progress bars still on screen, then print ``message`` as one line."""
+    from tqdm import tqdm
+
+    for bar in list(getattr(tqdm, "_instances", ())):
+        bar.leave = False
+        bar.close()
+    print(f"error: {message}", file=sys.stderr)
+    return status

@@ -1,16 +1,18 @@
 """What the command modules share: the parser class, the ``robot`` parent parsers and their run-time
-check, the repeated options, number parsing and output."""
+check, the repeated options, the validated argument types (finite numbers in a range, counts, paths),
+number parsing and strict output."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import NonFiniteResultError, RcmKinError
 from rcm_kin.robot import load_robot, robot_names
 
 RAW = argparse.RawDescriptionHelpFormatter      # keeps the epilogs' example lines
@@ -26,6 +28,24 @@ class Parser(argparse.ArgumentParser):
 
     def error(self, message: str):  # noqa: D102 - argparse API
         self.exit(2, f"error: {message} (see: {self.prog} --help)\n")
+
+    def _get_value(self, action, arg_string):
+        """argparse's (private, stable) conversion, with a value refused by one of our types (:class:`BadValue`)
+        turned into an :class:`ArgumentValueError` naming the argument (the command's user error,
+        status 2 from :func:`rcm_kin.cli.main`, like any other bad value)."""
+        try:
+            return super()._get_value(action, arg_string)
+        except BadValue as exc:
+            name = "/".join(action.option_strings) or action.metavar or action.dest
+            raise ArgumentValueError(f"{name}: {exc}") from None
+
+
+class BadValue(Exception):
+    """Raised by the argument types below: not a ValueError, so that argparse passes it on."""
+
+
+class ArgumentValueError(RcmKinError):
+    """A command-line value outside what its argument accepts (the argument is named)."""
 
 
 def robot_parent(help_text: str) -> argparse.ArgumentParser:
@@ -56,15 +76,61 @@ def add_json(parser: argparse.ArgumentParser, help_text: str = "machine-readable
 
 
 def add_params(parser: argparse.ArgumentParser, help_text: str = PARAMS_HELP) -> None:
-    parser.add_argument("--params", help=help_text)
+    parser.add_argument("--params", type=path_text, help=help_text)
+
+
+def _shown(word: str) -> str:
+    """A typed word as quoted in a message: at most 40 characters."""
+    return repr(word if len(word) <= 40 else word[:37] + "...")
+
+
+def finite(lo: float = -math.inf, hi: float = math.inf, unit: str = "", open_lo: bool = False):
+    """argparse ``type``: a finite number within [lo, hi] (``open_lo``: above ``lo``), in ``unit``."""
+    bounded = math.isfinite(lo) or math.isfinite(hi)
+    span = (f" in {'(' if open_lo else '['}{lo:g}, {hi:g}]" if bounded else "") + (f" {unit}" if unit else "")
+
+    def parse(word: str) -> float:
+        try:
+            value = float(word)
+        except ValueError:
+            raise BadValue(f"needs a number{span}, got {_shown(word)}") from None
+        if not math.isfinite(value):
+            raise BadValue(f"needs a finite number{span}, got {_shown(word)}")
+        if value < lo or value > hi or (open_lo and value == lo):
+            raise BadValue(f"needs a number{span}, got {_shown(word)}")
+        return value
+    return parse
+
+
+def count(lo: int, hi: int, what: str = ""):
+    """argparse ``type``: a whole number of ``what`` within [lo, hi] (a bound on the work it asks for)."""
+    def parse(word: str) -> int:
+        try:
+            value = int(word)
+        except ValueError:
+            raise BadValue(f"needs a whole number{' of ' + what if what else ''}, got {_shown(word)}") from None
+        if not lo <= value <= hi:
+            raise BadValue(f"needs at least {lo} and at most {hi:,}{' ' + what if what else ''}, got {_shown(word)}")
+        return value
+    return parse
+
+
+def path_text(word: str) -> str:
+    """argparse ``type``: a non-empty path."""
+    if not word.strip():
+        raise BadValue("an empty path")
+    return word
 
 
 def floats(values: list[str], what: str) -> np.ndarray:
-    """Command-line words as numbers, or a user error naming ``what``."""
+    """Command-line words as finite numbers, or a user error naming ``what``."""
     try:
-        return np.array([float(v) for v in values])
+        numbers = np.array([float(v) for v in values])
     except ValueError:
-        raise RcmKinError(f"{what} must be numbers, got {' '.join(values)}") from None
+        raise RcmKinError(f"{what} must be numbers, got {' '.join(_shown(v) for v in values)}") from None
+    if not np.all(np.isfinite(numbers)):
+        raise RcmKinError(f"{what} must be finite numbers, got {' '.join(_shown(v) for v in values)}")
+    return numbers
 
 
 def joint_values(robot, args) -> np.ndarray:
@@ -74,7 +140,7 @@ def joint_values(robot, args) -> np.ndarray:
         for i, name in enumerate(robot.actuated[:q.size]):
             if robot.joint_kind(name) == "revolute":
                 q[i] = np.radians(q[i])
-    return robot.check_q(q, allow_short=True)
+    return robot.check_limits(robot.check_q(q, allow_short=True))
 
 
 def driven_model(params: str | None, coulomb: bool):
@@ -86,27 +152,48 @@ def driven_model(params: str | None, coulomb: bool):
 
 
 def emit(args, payload: dict, text: str) -> None:
-    """Print ``payload`` as strict JSON with ``--json`` (NaN and infinities as null), else ``text``."""
-    print(json.dumps(_strict(payload), allow_nan=False) if args.json else text)
+    """Print ``payload`` as strict JSON with ``--json``, else ``text``. Either way a non-finite number
+    in ``payload`` is a user error naming where it is: a result is finite or it is not printed."""
+    where = _non_finite(payload)
+    if where:
+        raise NonFiniteResultError(f"the result is not finite ({where}): the inputs are outside what the model "
+                                   "can compute; check the parameter file and the numbers given")
+    print(json.dumps(payload, allow_nan=False) if getattr(args, "json", False) else text)
 
 
-def _strict(value):
-    """``value`` with every non-finite float replaced by None (JSON null)."""
-    if isinstance(value, float):
-        return value if np.isfinite(value) else None
+def _non_finite(value, where: str = "") -> str:
+    """The path of the first non-finite float in ``value`` ('' when all are finite)."""
+    if isinstance(value, (float, np.floating)):
+        return "" if math.isfinite(value) else (where.lstrip(".") or "value")
     if isinstance(value, dict):
-        return {k: _strict(v) for k, v in value.items()}
+        return next((w for k, v in value.items() if (w := _non_finite(v, f"{where}.{k}"))), "")
     if isinstance(value, (list, tuple)):
-        return [_strict(v) for v in value]
-    return value
+        return next((w for i, v in enumerate(value) if (w := _non_finite(v, f"{where}[{i}]"))), "")
+    return ""
 
 
-def new_output(path: str, force: bool) -> Path:
-    """``path`` as a file the command may write: a clear error if it exists and ``force`` is off,
-    or if its folder does not exist."""
+def new_output(path: str, force: bool, suffixes: tuple[str, ...] = ()) -> Path:
+    """``path`` as a file the command may write: a clear error if it is empty, a folder, has none of
+    ``suffixes`` (when given), exists and ``force`` is off, or its folder does not exist."""
+    if not str(path).strip():
+        raise RcmKinError("an empty output path")
     out = Path(path)
+    if suffixes and out.suffix.lower() not in suffixes:
+        raise RcmKinError(f"{out}: the output file must end in {' or '.join(suffixes)}")
+    if out.is_dir():
+        raise RcmKinError(f"{out} is a folder: give a file name")
     if out.exists() and not force:
-        raise RcmKinError(f"{out} exists: choose another --out or add --force")
+        raise RcmKinError(f"{out} exists: choose another output file or add --force")
     if not out.parent.is_dir():
         raise RcmKinError(f"no folder {out.parent} for {out.name}")
     return out
+
+
+def add_force(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
+
+
+def progress_wanted(args) -> bool:
+    """Progress bars on stderr unless ``--json`` (scripts); a user error is printed after they are
+    cleared (:func:`rcm_kin.cli.main`)."""
+    return not getattr(args, "json", False)

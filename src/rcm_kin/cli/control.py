@@ -6,12 +6,14 @@ from dataclasses import asdict
 
 import numpy as np
 
-from rcm_kin.cli.common import RAW, add_json, add_params, driven_model, emit, floats, psm_robot, require_psm
+from rcm_kin.cli.common import (RAW, add_json, add_params, count, driven_model, emit, finite, floats, path_text,
+                                psm_robot, require_psm)
 from rcm_kin.control.friction_compensation import DEFAULT_RAMP_DEG_S
 from rcm_kin.control.weights import Weights
-from rcm_kin.errors import RcmKinError, output_folder
+from rcm_kin.errors import output_folder
 from rcm_kin.hardware import DRIVER_PWM_RANGE, FIRMWARE_PERIOD, HOME_INSERTION
 
+MAX_CHECK_POINTS = 201    # 201 x 201 poses: about a minute of eigenvalues
 NOT_PSM = "the driven-joint dynamics are the PSM's (roll, pitch, insertion), not '{robot}'"
 EPILOG_SCHEDULE = ("examples: rcm-kin schedule psm --out gains\n"
                    "          rcm-kin schedule psm --grid=-30,-15,0,15,30:-30,0,30 --gravity-feedforward --out gains\n"
@@ -36,9 +38,9 @@ def add_linearize(sub) -> None:
     p = sub.add_parser("linearize", help="linear model (A, B, C, D) of the PSM driven joints at a held pose",
                        parents=[psm_robot()],
                        epilog="example: rcm-kin linearize psm --roll 10 --pitch=-5 --insertion 0.08 --json")
-    p.add_argument("--roll", required=True, help="roll angle in degrees")
-    p.add_argument("--pitch", required=True, help="pitch angle in degrees")
-    p.add_argument("--insertion", type=float, default=HOME_INSERTION,
+    p.add_argument("--roll", required=True, type=finite(unit="deg"), help="roll angle in degrees")
+    p.add_argument("--pitch", required=True, type=finite(unit="deg"), help="pitch angle in degrees")
+    p.add_argument("--insertion", type=finite(unit="m"), default=HOME_INSERTION,
                    help=f"insertion in m (default {HOME_INSERTION:g})")
     p.add_argument("--no-coulomb", action="store_true",
                    help="leave the smoothed Coulomb friction out (its slope at rest is set by the smoothing width)")
@@ -53,32 +55,34 @@ def add_schedule(sub) -> None:
     p.add_argument("--grid", default="thesis",
                    help="'thesis' (roll -20,0,20 x pitch -15,0,15 deg) or ROLLS:PITCHES in degrees, comma-separated "
                         "(write --grid=-20,0,20:-15,0,15 when it starts with a minus)")
-    p.add_argument("--insertion", type=float, default=HOME_INSERTION,
+    p.add_argument("--insertion", type=finite(unit="m"), default=HOME_INSERTION,
                    help=f"insertion of the models in m (default {HOME_INSERTION:g})")
     p.add_argument("--gravity-feedforward", action="store_true",
                    help="also export the holding-PWM table (u_hold) and rcm_holding_pwm()")
     p.add_argument("--friction-feedforward", action="store_true",
                    help="also export the sliding-friction compensation (RCM_FC_* and rcm_friction_feedforward(): "
                         "-F_c/|k_u| tanh(rdot / ramp) PWM on the reference velocity; needs <math.h>)")
-    p.add_argument("--friction-ramp", type=float, default=DEFAULT_RAMP_DEG_S,
+    p.add_argument("--friction-ramp", type=finite(0, 1e4, "deg/s", open_lo=True), default=DEFAULT_RAMP_DEG_S,
                    help=f"ramp velocity of the friction compensation in deg/s (default {DEFAULT_RAMP_DEG_S:g})")
     for name, value in asdict(Weights()).items():
-        p.add_argument("--" + name.replace("_", "-"), dest=name, type=float, default=value,
-                       help=f"Bryson budget (default {value:g})")
-    p.add_argument("--check-points", type=int, default=41,
-                   help="stability check on N x N poses across the grid (default 41)")
+        p.add_argument("--" + name.replace("_", "-"), dest=name, type=finite(0, 1e6, open_lo=True), default=value,
+                       help=f"Bryson budget, > 0 (default {value:g})")
+    p.add_argument("--check-points", type=count(2, MAX_CHECK_POINTS), default=41,
+                   help=f"stability check on N x N poses across the grid (2 to {MAX_CHECK_POINTS}, default 41)")
     add_params(p)
-    p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument("--out", required=True, type=path_text, help="output folder (created)")
     add_json(p, '{"files", "stable", weakest point}')
     p.set_defaults(func=cmd_schedule)
 
 
 def cmd_dynamics(args) -> None:
+    from rcm_kin.control.linearization import check_in_range
     from rcm_kin.dynamics.state_space import check_state
 
     require_psm(args, NOT_PSM)
     model = driven_model(args.params, coulomb=not args.no_coulomb)
     x, u = check_state(np.r_[floats(args.q, "--q"), floats(args.v, "--v")], floats(args.u, "--u"))
+    check_in_range(model, x[:3])
     qdd = np.array(model.forward(x, u)).ravel()[3:]
     lines = [f"{n:10} qdd {a:+.6g} {'m/s^2' if n == 'insertion' else 'rad/s^2'}" for n, a in zip(model.joints, qdd)]
     emit(args, {"qdd": qdd.tolist()}, "\n".join(lines))
@@ -89,8 +93,7 @@ def cmd_linearize(args) -> None:
 
     require_psm(args, NOT_PSM)
     model = driven_model(args.params, coulomb=not args.no_coulomb)
-    pose = floats([args.roll, args.pitch], "--roll and --pitch")
-    lin = linearize(model, [np.radians(pose[0]), np.radians(pose[1]), args.insertion])
+    lin = linearize(model, [np.radians(args.roll), np.radians(args.pitch), args.insertion])
     np.set_printoptions(precision=5, suppress=True, linewidth=120)
     text = (f"equilibrium x0 = {lin.x0.round(6).tolist()} (rad, m; at rest), holding PWM u0 = {lin.u0.round(3).tolist()}"
             f"\nstate {lin.state}, input {lin.inputs}"
@@ -103,10 +106,6 @@ def cmd_schedule(args) -> None:
     from rcm_kin.control.gain_schedule import parse_grid, schedule_gains
     from rcm_kin.control.stability import stability_survey
 
-    if args.check_points < 2:
-        raise RcmKinError("--check-points needs at least 2 poses per axis")
-    if not (np.isfinite(args.friction_ramp) and args.friction_ramp > 0):
-        raise RcmKinError(f"--friction-ramp is a velocity > 0 in deg/s, got {args.friction_ramp}")
     require_psm(args, NOT_PSM)
     model = driven_model(args.params, coulomb=False)
     rolls, pitches = parse_grid(args.grid)

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rcm_kin.cli.common import RAW, add_json, add_params, emit, new_output, psm_robot, require_psm
+from rcm_kin.cli.common import (RAW, add_json, add_params, count, emit, finite, new_output, path_text, progress_wanted,
+                                psm_robot, require_psm)
 
 EPILOG_IDENTIFY = ("example: rcm-kin identify psm ../shared/data --out identified.toml --cv\n"
                    "         rcm-kin predict psm roll_step_response_roll_0_pitch_0.csv --joint roll "
@@ -23,7 +24,8 @@ EPILOG_PREDICT = ("example: rcm-kin predict psm roll_step_response_roll_0_pitch_
 def add_identify(sub) -> None:
     p = sub.add_parser("identify", help="identify the drive trains (stick-slip friction, inertia) from logs",
                        parents=[psm_robot()], epilog=EPILOG_IDENTIFY, formatter_class=RAW)
-    p.add_argument("logs", nargs="+", metavar="DIR_OR_FILE", help="telemetry CSV logs, or folders searched for them")
+    p.add_argument("logs", nargs="+", metavar="DIR_OR_FILE", type=path_text,
+                   help="telemetry CSV logs, or folders searched for them")
     p.add_argument("--out", required=True, help="drive parameter TOML to write (the --params set with the "
                                                 "identified drive trains)")
     p.add_argument("--joint", nargs="+", choices=("roll", "pitch"), default=["roll"],
@@ -31,7 +33,7 @@ def add_identify(sub) -> None:
                         "its logs are too slow to fix its friction at tracking speeds, see the README)")
     p.add_argument("--cv", action="store_true",
                    help="leave-one-log-out cross-validation, each fold fitted from scratch (minutes)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the evolutionary search (default 0)")
+    p.add_argument("--seed", type=count(0, 2**32 - 1), default=0, help="seed of the evolutionary search (default 0)")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     add_params(p, "starting drive parameter TOML (default: the shipped set)")
     add_json(p, '{"parameters", "standard_errors", "jackknife_standard_errors", "logs", "fits", '
@@ -42,10 +44,10 @@ def add_identify(sub) -> None:
 def add_predict(sub) -> None:
     p = sub.add_parser("predict", help="simulate a log from its recorded PWM with the identified model",
                        parents=[psm_robot()], epilog=EPILOG_PREDICT, formatter_class=RAW)
-    p.add_argument("log", metavar="LOG", help="telemetry CSV (position = measured deg, velocity = PWM)")
+    p.add_argument("log", metavar="LOG", type=path_text, help="telemetry CSV (position = measured deg, velocity = PWM)")
     p.add_argument("--joint", required=True, choices=("roll", "pitch"))
     add_params(p, "drive parameter TOML with [drive_train.<joint>] (default: the shipped set)")
-    p.add_argument("--plot", metavar="FILE", help="PNG of measured and predicted angle, stick phases shaded")
+    p.add_argument("--plot", metavar="FILE.png", help="PNG of measured and predicted angle, stick phases shaded")
     add_json(p, '{"fit_percent", "final_error_deg", "time" (s), "measured" (deg), "predicted" (deg)}')
     p.set_defaults(func=cmd_predict)
 
@@ -55,9 +57,9 @@ def cmd_identify(args) -> None:
     from rcm_kin.identification.identify import identify
 
     require_psm(args, "identify models the PSM's drive trains, not the {robot}")
-    out = new_output(args.out, args.force)
+    out = new_output(args.out, args.force, (".toml",))
     result = identify(args.logs, load_drive_parameters(args.params), tuple(dict.fromkeys(args.joint)), args.cv,
-                      args.seed, progress=not args.json)
+                      args.seed, progress=progress_wanted(args))
     header = ["Drive parameters with drive trains identified by rcm-kin identify from:"]
     header += [f"  {j}: {', '.join(r.logs)}" for j, r in result.joints.items()]
     payload = result.as_dict()
@@ -85,6 +87,7 @@ def cmd_predict(args) -> None:
     from rcm_kin.identification.identify import predict_file
 
     require_psm(args, "predict uses the PSM's drive trains, not the {robot}")
+    plot = new_output(args.plot, True, (".png",)) if args.plot is not None else None
     log, predicted, check = predict_file(load_drive_parameters(args.params), args.log, args.joint)
     payload = {"fit_percent": check.fit_percent, "final_error_deg": check.final_error_deg,
                "time": log.time.tolist(), "measured": np.degrees(log.measured).tolist(),
@@ -92,10 +95,10 @@ def cmd_predict(args) -> None:
     lines = [f"{log.name}, {args.joint}: fit {check.fit_percent:.1f} % (NRMSE), final angle measured "
              f"{np.degrees(log.measured[-1]):.3f} deg, predicted {np.degrees(predicted[-1]):.3f} deg "
              f"(error {check.final_error_deg:+.3f})"]
-    if args.plot:
+    if plot:
         from rcm_kin.report.figures import prediction_figure
 
-        path = prediction_figure(log.time, np.degrees(log.measured), np.degrees(predicted), args.plot,
+        path = prediction_figure(log.time, np.degrees(log.measured), np.degrees(predicted), plot,
                                  f"{log.name}, {args.joint}: fit {check.fit_percent:.1f} %")
         payload["written"] = str(path)
         lines.append(f"wrote {path}")
@@ -105,13 +108,15 @@ def cmd_predict(args) -> None:
 def add_excite(sub) -> None:
     p = sub.add_parser("excite", help="design a periodic excitation for identifying the drive trains (replay CSV)",
                        parents=[psm_robot()], epilog=EPILOG_EXCITE, formatter_class=RAW)
-    p.add_argument("--duration", type=float, required=True, metavar="S",
+    p.add_argument("--duration", type=finite(unit="s"), required=True, metavar="S",
                    help="seconds of excitation per joint (1 to 600; a whole number of ~10 s periods)")
     p.add_argument("--out", required=True, metavar="FILE.csv", help="replay CSV to write")
     p.add_argument("--joint", nargs="+", default=["roll", "pitch"], metavar="JOINT",
                    help="joints to excite, in turn (roll, pitch; default both)")
-    p.add_argument("--harmonics", type=int, default=5, help="harmonics of each Fourier series (2 to 20, default 5)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the optimisation's random starts (default 0)")
+    p.add_argument("--harmonics", type=count(2, 20), default=5,
+                   help="harmonics of each Fourier series (2 to 20, default 5)")
+    p.add_argument("--seed", type=count(0, 2**32 - 1), default=0,
+                   help="seed of the optimisation's random starts (default 0)")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     add_params(p, "drive parameter TOML for the feedforward and the drive trains (default: the shipped set)")
     add_json(p, '{"written", "condition_number", "baseline_condition_number", "standard_errors": {joint: '
@@ -126,9 +131,9 @@ def cmd_excite(args) -> None:
 
     require_psm(args, "excite designs the PSM's drive-train experiments, not the {robot}'s")
     joints = check_request(args.duration, args.joint, args.harmonics)
-    out = new_output(args.out, args.force)
+    out = new_output(args.out, args.force, (".csv",))
     result = design_excitation(args.duration, joints, args.harmonics, args.seed, load_drive_parameters(args.params),
-                               progress=not args.json)
+                               progress=progress_wanted(args))
     payload = result.as_dict()
     payload["written"] = str(write_excitation(result, out))
     lines = []

@@ -6,9 +6,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.cli.common import RAW, add_json, add_params, driven_model, emit, floats
+from rcm_kin.cli.common import (RAW, add_force, add_json, add_params, count, driven_model, emit, floats, new_output,
+                                path_text)
 from rcm_kin.errors import RcmKinError, output_folder
 
+MAX_SAMPLES = 100_000     # samples of one step or segment: the logs hold a few thousand
 EPILOG_SYSID = ("examples: rcm-kin sysid roll_step.csv --joint roll --json   (2nd-order fit of the step)\n"
                 "          rcm-kin sysid prbs_roll_0_pitch_0.csv --joint pitch --order 4\n"
                 "          rcm-kin sysid psm-sysid/roll-step --joint roll --out table   "
@@ -20,21 +22,25 @@ EPILOG_GREYBOX = ("example: rcm-kin greybox psm-sysid/roll-step --joint roll --o
 def add_sysid(sub) -> None:
     p = sub.add_parser("sysid", help="transfer-function identification from telemetry logs (step or PRBS)",
                        epilog=EPILOG_SYSID, formatter_class=RAW)
-    p.add_argument("log", metavar="LOG", help="telemetry CSV (position = measured deg, velocity = PWM), or a "
-                                             "folder of logs named ..._roll_R_pitch_P.csv")
+    p.add_argument("log", metavar="LOG", type=path_text,
+                   help="telemetry CSV (position = measured deg, velocity = PWM), or a "
+                        "folder of logs named ..._roll_R_pitch_P.csv")
     p.add_argument("--joint", required=True, choices=("roll", "pitch"))
     p.add_argument("--method", choices=("step", "prbs"),
                    help="step: trimmed open-loop step; prbs: whole record about its means (default: roll step, "
                         "pitch prbs)")
-    p.add_argument("--order", type=int, help="number of poles (default 2 for step, 3 for prbs)")
-    p.add_argument("--zeros", type=int, help="number of zeros (default order - 1)")
-    p.add_argument("--samples", type=int, default=1000, help="step: samples kept from the step (default 1000)")
-    p.add_argument("--segment", type=int,
+    p.add_argument("--order", type=count(1, 10, "poles"),
+                   help="number of poles, 1 to 10 (default 2 for step, 3 for prbs)")
+    p.add_argument("--zeros", type=count(0, 9, "zeros"),
+                   help="number of zeros, fewer than the poles (default order - 1)")
+    p.add_argument("--samples", type=count(50, MAX_SAMPLES), default=1000,
+                   help=f"step: samples kept from the step, 50 to {MAX_SAMPLES:,} (default 1000)")
+    p.add_argument("--segment", type=count(10, MAX_SAMPLES),
                    help="prbs: samples per segment simulated from its own initial state (default 500)")
     p.add_argument("--pose", nargs=2, metavar=("ROLL", "PITCH"),
                    help="pose in deg for the physics comparison (default: from the file name)")
     add_params(p, "drive parameter TOML of the physics model (default: the shipped set)")
-    p.add_argument("--out", help="folder: write the per-pose table (CSV) when LOG is a folder")
+    p.add_argument("--out", type=path_text, help="folder: write the per-pose table (CSV) when LOG is a folder")
     add_json(p, '{"num", "den", "fit_percent", "A", "B", "C", "D", ...}; a folder gives {"models": [...]}')
     p.set_defaults(func=cmd_sysid)
 
@@ -42,11 +48,14 @@ def add_sysid(sub) -> None:
 def add_greybox(sub) -> None:
     p = sub.add_parser("greybox", help="fit extra inertia and friction to open-loop step logs by simulating the "
                                        "physics", epilog=EPILOG_GREYBOX, formatter_class=RAW)
-    p.add_argument("logs", nargs="+", metavar="LOG", help="step logs (telemetry CSV) or folders of them")
+    p.add_argument("logs", nargs="+", metavar="LOG", type=path_text,
+                   help="step logs (telemetry CSV) or folders of them")
     p.add_argument("--joint", required=True, choices=("roll", "pitch"))
-    p.add_argument("--samples", type=int, default=1000, help="samples kept from each step (default 1000)")
+    p.add_argument("--samples", type=count(50, MAX_SAMPLES), default=1000,
+                   help=f"samples kept from each step, 50 to {MAX_SAMPLES:,} (default 1000)")
     add_params(p, "starting drive parameter TOML (default: the shipped set)")
-    p.add_argument("--out", help="write the fitted parameter set (TOML) to this file")
+    p.add_argument("--out", help="write the fitted parameter set (TOML) to this new file (or --force)")
+    add_force(p)
     add_json(p, '{"before", "after", "coulomb_per_log", "fit_percent_before", "fit_percent_after", ...}')
     p.set_defaults(func=cmd_greybox)
 
@@ -56,8 +65,6 @@ def cmd_sysid(args) -> None:
     model = driven_model(args.params, coulomb=False)
     options = dict(method=args.method, order=args.order, zeros=args.zeros, samples=args.samples,
                    segment=args.segment)
-    if args.samples < 50:
-        raise RcmKinError("--samples needs at least 50 samples after the step")
     if Path(args.log).is_dir():
         _sysid_folder(args, model, options)
     else:
@@ -113,8 +120,7 @@ def cmd_greybox(args) -> None:
         if not found:
             raise RcmKinError(f"no logs (CSV or ROS 2 bags) in {item}")
         paths += found
-    if args.samples < 50:
-        raise RcmKinError("--samples needs at least 50 samples after the step")
+    out = new_output(args.out, args.force, (".toml",)) if args.out is not None else None
     fit = fit_greybox(load_drive_parameters(args.params), args.joint, step_logs(paths, args.joint, args.samples))
     payload = fit.as_dict()
     lines = [f"{args.joint} grey-box fit on {len(fit.logs)} step logs:"]
@@ -122,8 +128,8 @@ def cmd_greybox(args) -> None:
     lines += ["  fit % per log: starting set -> fitted set (median Coulomb) -> with the log's own Coulomb"]
     lines += [f"  {name:44} {b:9.1f} -> {a:7.1f} -> {p:6.1f}   (coulomb {c:.3f} N m)" for name, c, b, a, p in
               zip(fit.logs, fit.coulomb_per_log, fit.fit_before, fit.fit_after, fit.fit_per_log_friction)]
-    if args.out:
-        path = write_greybox_parameters(fit, args.out)
+    if out:
+        path = write_greybox_parameters(fit, out)
         payload["written"] = str(path)
         lines.append(f"wrote {path} (use it with --params)")
     emit(args, payload, "\n".join(lines))

@@ -9,7 +9,7 @@ from rcm_kin.robot import GRAVITY, load_robot
 
 EPILOG_FK = "example: rcm-kin fk psm 10 -5 0.08 --deg --json   (roll 10 deg, pitch -5 deg, insertion 0.08 m)"
 EPILOG_IK = ("examples: rcm-kin ik psm 0.01 0.02 -0.06 --json   (shaft tip at x y z in m, base frame)\n"
-             "          rcm-kin ik psm 0.01 0.02 -0.07 --rpy 180 0 0 --deg   (tool_tip pose, numeric)\n"
+             "          rcm-kin ik psm -0.009 0 -0.073 --rpy 0 61 -180 --deg   (tool_tip pose, numeric)\n"
              "          rcm-kin ik mtm 0.26 0.02 -0.2 --json   (MTM wrist centre)")
 
 

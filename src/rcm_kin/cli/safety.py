@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from rcm_kin.cli.common import RAW, Parser, add_json, emit
+from rcm_kin.cli.common import RAW, Parser, add_json, emit, finite, path_text
 from rcm_kin.errors import RcmKinError
 
+LENGTH = finite(0, 1, open_lo=True)      # the certificates' sets live within +-0.1 m (eps_bar: B, unitless)
 EPILOG_SAFETY = ("examples: rcm-kin safety simulate ellipsoid --json   (CBF blend on the 3-D no-go ellipsoid)\n"
                  "          rcm-kin safety simulate psm --filter qp   (PSM teleoperation towards a forbidden region)\n"
                  "          rcm-kin safety certify 3 --error-bound 0.007 --json   (SOS barrier certificate)")
@@ -21,8 +22,9 @@ def add_safety(sub) -> None:
                         "heart: beating-heart fixture; psm: our PSM teleoperated towards a 1.5 mm no-go ellipsoid")
     s.add_argument("--filter", choices=("blend", "qp", "none"), default="blend",
                    help="blend: the thesis's sigma k0 + (1 - sigma) u; qp: CBF-QP (Clarabel); none (default blend)")
-    s.add_argument("--kappa", type=float, help="aggressiveness of k0 in m (default 1; psm 0.01)")
-    s.add_argument("--trajectory", help="psm: MTM recording CSV (default: the bundled figure-eight)")
+    s.add_argument("--kappa", type=finite(0, 100, "m", open_lo=True),
+                   help="aggressiveness of k0 in m, in (0, 100] (default 1; psm 0.01)")
+    s.add_argument("--trajectory", type=path_text, help="psm: MTM recording CSV (default: the bundled figure-eight)")
     add_json(s, '{"min_margin", "violations", ...}')
     s.set_defaults(func=cmd_safety_simulate)
     s = safety.add_parser("certify", help="SOS barrier certificate of one of the thesis's programs 1-4",
@@ -30,11 +32,12 @@ def add_safety(sub) -> None:
     s.add_argument("program", choices=("1", "2", "3", "4"),
                    help="1: slide first order, zero reference; 2: reference as a state; 3: first-order error "
                         "state; 4: second-order error state")
-    s.add_argument("--delta", type=float, help="separation of the initial and unsafe sets in m (thesis: 0.001, "
+    s.add_argument("--delta", type=LENGTH, help="separation of the initial and unsafe sets in m (thesis: 0.001, "
                                                "0.015, 0.004, 0.005)")
-    s.add_argument("--error-bound", type=float, help="programs 3-4: unsafe error beyond this in m (thesis 0.009, 0.008)")
-    s.add_argument("--r-max", type=float, help="program 2: largest reference in m (thesis 0.017)")
-    s.add_argument("--eps-bar", type=float, help="B on the unsafe set at least this (thesis 0.001, 0.1, 0.01, 0.05)")
+    s.add_argument("--error-bound", type=LENGTH,
+                   help="programs 3-4: unsafe error beyond this in m (thesis 0.009, 0.008)")
+    s.add_argument("--r-max", type=LENGTH, help="program 2: largest reference in m (thesis 0.017)")
+    s.add_argument("--eps-bar", type=LENGTH, help="B on the unsafe set at least this (thesis 0.001, 0.1, 0.01, 0.05)")
     add_json(s, '{"feasible", "certificate", "sampling_check", ...}')
     s.set_defaults(func=cmd_safety_certify)
 

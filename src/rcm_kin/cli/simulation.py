@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
-
-from rcm_kin.cli.common import RAW, add_json, add_params, emit, floats, psm_robot, require_psm
-from rcm_kin.errors import RcmKinError, output_folder
+from rcm_kin.cli.common import (RAW, add_json, add_params, count, emit, finite, floats, path_text, progress_wanted,
+                                psm_robot, require_psm)
+from rcm_kin.errors import output_folder
 from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS, PWM_LIMIT
 from rcm_kin.simulation.controllers import CONTROLLERS
 
@@ -29,19 +28,24 @@ def add_simulate(sub) -> None:
                         "LQR/LQI at (0,0); scheduled: gain-scheduled LQR/LQI + feedforward; scheduled-gravity: plus "
                         "holding PWM; scheduled-friction: plus the sliding-friction compensation on the reference "
                         "velocity; thesis: the thesis's flashed gain tables and law (Tables 4.4-4.8)")
-    p.add_argument("--duration", type=float, help="simulated seconds (default: sine 6, step 3, target: recording)")
-    p.add_argument("--trajectory", help="MTM recording CSV (unix_time,x,y,z in m) for --experiment target "
-                                        "(default: the bundled figure-eight)")
-    p.add_argument("--rate", type=float, default=RATE, help=f"controller rate in Hz (default {RATE:g})")
+    p.add_argument("--duration", type=finite(0, 1e4, "s", open_lo=True),
+                   help="simulated seconds (default: sine 6, step 3, target: recording; at most 200,000 controller "
+                        "periods)")
+    p.add_argument("--trajectory", type=path_text,
+                   help="MTM recording CSV (unix_time,x,y,z in m) for --experiment target "
+                        "(default: the bundled figure-eight)")
+    p.add_argument("--rate", type=finite(1, 1e5, "Hz"), default=RATE,
+                   help=f"controller rate in Hz (1 to 100000, default {RATE:g})")
     p.add_argument("--pwm-limit", nargs=3, metavar=("ROLL", "PITCH", "INS"),
                    help=f"PWM saturation in counts (default {' '.join(f'{v:g}' for v in PWM_LIMIT)})")
-    p.add_argument("--skip", type=float, default=0.0,
+    p.add_argument("--skip", type=finite(0, unit="s"), default=0.0,
                    help="leave the first S seconds out of the statistics (default 0; the sinusoid starts at "
                         "full speed)")
-    p.add_argument("--noise-counts", type=float, default=0.0, help="encoder noise std in counts (default 0)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the encoder noise (default 0)")
+    p.add_argument("--noise-counts", type=finite(0, 1e4, "counts"), default=0.0,
+                   help="encoder noise std in counts (default 0)")
+    p.add_argument("--seed", type=count(0, 2**32 - 1), default=0, help="random seed of the encoder noise (default 0)")
     add_params(p)
-    p.add_argument("--plot", metavar="DIR", help="write reference/measured/error plots (PNG) into DIR")
+    p.add_argument("--plot", metavar="DIR", type=path_text, help="write reference/measured/error plots (PNG) into DIR")
     add_json(p, '{"roll": {"max_error_deg", "mean_error_deg", "rms_error_deg", ...}, "pitch": {...}}')
     p.set_defaults(func=cmd_simulate)
 
@@ -53,12 +57,11 @@ def cmd_simulate(args) -> None:
     from rcm_kin.simulation.loop import tracking_metrics
 
     require_psm(args, "the tracking experiments run on the PSM's driven joints, not '{robot}'")
-    if not (np.isfinite(args.rate) and args.rate > 0):
-        raise RcmKinError(f"--rate is a positive frequency in Hz, got {args.rate}")
     limits = {"pwm_limit": floats(args.pwm_limit, "--pwm-limit")} if args.pwm_limit else {}
     settings = FirmwareSettings(period=1.0 / args.rate, noise_counts=args.noise_counts, **limits)
     result = run_experiment(args.experiment, args.controller, args.duration, load_drive_parameters(args.params),
-                            settings, args.trajectory, seed=args.seed, progress=sys.stderr.isatty())
+                            settings, args.trajectory, seed=args.seed,
+                            progress=progress_wanted(args) and sys.stderr.isatty())
     metrics = tracking_metrics(result, args.skip)
     payload = {axis: vars(m) for axis, m in metrics.items()}
     lines = [f"{args.experiment} with {args.controller}, {result.time[-1]:.2f} s at {args.rate:g} Hz:"] + [

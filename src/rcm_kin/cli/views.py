@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
-from rcm_kin.cli.common import RAW, any_robot, joint_values
+from pathlib import Path
+
+from rcm_kin.cli.common import (RAW, add_force, add_json, any_robot, count, emit, joint_values, new_output,
+                                path_text, progress_wanted)
 from rcm_kin.robot import load_robot
+from rcm_kin.statics.gravity_map import MAX_POSES
 
 EPILOG_VIEW = ("examples: rcm-kin view psm --q 10 -5 0.08 --deg --html psm.html   (self-contained page)\n"
                "          rcm-kin view mtm --frames wrist_center tool_tip   (serves on localhost, prints the URL)\n"
@@ -20,61 +24,91 @@ def add_view(sub) -> None:
                    help="actuated joint values in 'info' order (rad, m; missing trailing values are 0)")
     p.add_argument("--deg", action="store_true", help="revolute values in degrees (prismatic stay in m)")
     p.add_argument("--frames", nargs="*", metavar="FRAME", help="frames to show as axis triads (e.g. rcm tool_tip)")
-    p.add_argument("--html", metavar="FILE", help="write a self-contained page instead of serving")
-    p.add_argument("--png", metavar="FILE", help="write a picture instead of serving (see --renderer)")
+    p.add_argument("--html", metavar="FILE.html", help="write a self-contained page instead of serving")
+    p.add_argument("--png", metavar="FILE.png", help="write a picture instead of serving (see --renderer)")
     p.add_argument("--renderer", choices=("matplotlib", "browser"), default="matplotlib",
                    help="--png: a matplotlib drawing (default), or the meshcat page as headless Chromium draws it")
+    add_force(p)
+    add_json(p, '{"robot", "q", "written": [files]} (with --html or --png)')
     p.set_defaults(func=cmd_view)
 
 
 def add_report(sub) -> None:
     p = sub.add_parser("report", help="run the main job on the bundled models and write index.html",
                        epilog=EPILOG_REPORT)
-    p.add_argument("--out", required=True, help="output folder (created)")
-    p.add_argument("--data", help="folder of measured logs (psm-sysid layout): adds calibration, identification "
-                                  "per pose and the grey-box fit, and uses its MTM recording for target following")
-    p.add_argument("--map-points", type=int, default=61,
-                   help="poses per axis of the holding-effort maps over +-30 deg (default 61)")
+    p.add_argument("--out", required=True, type=path_text, help="output folder (created)")
+    p.add_argument("--data", type=path_text,
+                   help="folder of measured logs (psm-sysid layout): adds calibration, identification "
+                        "per pose and the grey-box fit, and uses its MTM recording for target following")
+    p.add_argument("--map-points", type=count(2, int(MAX_POSES**0.5)), default=61,
+                   help=f"poses per axis of the holding-effort maps over +-30 deg (2 to {int(MAX_POSES**0.5)}, "
+                        "default 61)")
+    add_json(p, '{"index", "files": [paths relative to --out]}')
     p.set_defaults(func=cmd_report)
 
 
 def cmd_view(args) -> None:
-    """Files with ``--png``/``--html``; otherwise a live meshcat server until Ctrl-C."""
+    """Files with ``--png``/``--html``; otherwise a live meshcat server until Ctrl-C (or SIGTERM)."""
     from rcm_kin.visualization.views import robot_view, show, write_html
 
     robot = load_robot(args.robot)
     q = joint_values(robot, args)
     frames = tuple(args.frames or ())
-    if args.png and args.renderer == "browser":
+    png = None if args.png is None else new_output(args.png, args.force, (".png",))
+    page = None if args.html is None else new_output(args.html, args.force, (".html", ".htm"))
+    written = []
+    if png and args.renderer == "browser":
         from rcm_kin.visualization.browser import browser_png
 
-        print(f"wrote {browser_png(robot, q, args.png, frames)}")
-    elif args.png:
+        written.append(str(browser_png(robot, q, png, frames)))
+    elif png:
         from rcm_kin.visualization.drawing import robot_drawing
 
-        print(f"wrote {robot_drawing(robot, q, args.png, title=robot.name.upper())}")
-    if args.html:
+        written.append(str(robot_drawing(robot, q, png, title=robot.name.upper())))
+    if page:
         viz = robot_view(robot, frames=frames)
         show(viz, robot, q)
-        print(f"wrote {write_html(viz, args.html)}")
-    if args.html or args.png:
+        written.append(str(write_html(viz, page)))
+    if written:
+        emit(args, {"robot": robot.name, "q": q.tolist(), "written": written},
+             "\n".join(f"wrote {f}" for f in written))
         return
+    _serve(robot, q, frames)
+
+
+def _serve(robot, q, frames: tuple[str, ...]) -> None:
+    """A live meshcat server showing ``robot`` at ``q`` until Ctrl-C or SIGTERM; the server process
+    is stopped either way."""
+    import signal
+    import time
+
     import meshcat
 
+    from rcm_kin.visualization.views import robot_view, show
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
     live = meshcat.Visualizer()            # starts the meshcat server and prints its URL
-    viz = robot_view(robot, window=live.window, frames=frames)
-    show(viz, robot, q)
-    print("serving; press Ctrl-C to stop", flush=True)
+    previous = signal.signal(signal.SIGTERM, stop)
     try:
-        import time
+        viz = robot_view(robot, window=live.window, frames=frames)
+        show(viz, robot, q)
+        print("serving; press Ctrl-C to stop", flush=True)
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:
         print("stopped")
+    finally:
+        if live.window.server_proc is not None:
+            live.window.server_proc.kill()
+            live.window.server_proc.wait()
+        signal.signal(signal.SIGTERM, previous)
 
 
 def cmd_report(args) -> None:
     from rcm_kin.report import write_report
 
-    index = write_report(args.out, args.data, args.map_points, progress=True)
-    print(f"report written: {index}")
+    index = write_report(args.out, args.data, args.map_points, progress=progress_wanted(args))
+    files = sorted(str(f.relative_to(index.parent)) for f in Path(index.parent).rglob("*") if f.is_file())
+    emit(args, {"index": str(index), "files": files}, f"report written: {index} ({len(files)} files)")

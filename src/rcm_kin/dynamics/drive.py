@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rcm_kin.dynamics.drive_schema import DRIVE_TRAIN, DRIVE_TRAIN_DEFAULT, JOINT_DRIVE, check_offset, check_table
 from rcm_kin.dynamics.stick_slip import AxisFriction
 from rcm_kin.errors import RcmKinError, read_toml
 from rcm_kin.hardware import PWM_LIMIT
@@ -87,7 +88,8 @@ class DriveEffort:
 
 def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
     """Read a drive parameter file (default: the shipped, calibrated one); each joint's
-    ``pwm_limit`` is the firmware's (:data:`rcm_kin.hardware.PWM_LIMIT`)."""
+    ``pwm_limit`` is the firmware's (:data:`rcm_kin.hardware.PWM_LIMIT`). Every value is checked
+    against its unit and range (:mod:`rcm_kin.dynamics.drive_schema`)."""
     path = Path(path) if path is not None else DEFAULT_PARAMETERS
     raw = read_toml(path, "drive parameter file")
     names = [f.name for f in fields(JointDrive) if f.name not in FIRMWARE_FIELDS]
@@ -100,28 +102,25 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
         unknown = sorted(set(entry) - set(names) - set(FIRMWARE_FIELDS))
         if unknown:
             raise RcmKinError(f"{path}: [{joint}] has unknown keys {', '.join(unknown)} (known: {', '.join(names)})")
-        try:
-            joints[joint] = JointDrive(**{n: float(entry[n]) for n in names if n in entry}, pwm_limit=float(limit))
-            legacy = float(entry.get("pwm_limit", limit))
-        except (TypeError, ValueError):
-            raise RcmKinError(f"{path}: [{joint}] values must be numbers") from None
+        values = check_table(entry, JOINT_DRIVE, path, joint)
+        joints[joint] = JointDrive(**{n: values[n] for n in names if n in values}, pwm_limit=float(limit))
+        legacy = values.get("pwm_limit", float(limit))
         if legacy != limit:
             raise RcmKinError(f"{path}: [{joint}] pwm_limit = {legacy:g} differs from the firmware's {limit:g} "
                               "counts (rcm_kin/hardware.py PWM_LIMIT); drive files no longer set it: remove the "
                               "key (a simulation takes other limits through FirmwareSettings, --pwm-limit)")
     offsets = {}
+    if not isinstance(raw.get("gravity_offsets", {}), dict):
+        raise RcmKinError(f"{path}: gravity_offsets must be a table [gravity_offsets] of 3-number lists (kg m)")
     for link, value in raw.get("gravity_offsets", {}).items():
-        v = np.asarray(value, dtype=float)
-        if v.shape != (3,):
-            raise RcmKinError(f"{path}: gravity_offsets.{link} must be 3 numbers (kg m)")
-        offsets[link] = v
+        offsets[link] = np.array(check_offset(value, path, link))
     return DriveParameters(joints, offsets, str(path), _drive_train(path, raw.get("drive_train", {})))
 
 
 def _drive_train(path: Path, raw) -> dict[str, AxisFriction]:
     """The ``[drive_train.<joint>]`` tables: the identified stick-slip model of each joint. Values
-    are numbers (not booleans), finite, >= 0 but for the presliding slope (|s| <= 20 /rad), and
-    a Stribeck velocity > 0."""
+    are numbers (not booleans) in the ranges of :data:`rcm_kin.dynamics.drive_schema.DRIVE_TRAIN`:
+    finite, >= 0 but for the presliding slope (|s| <= 20 /rad), and a Stribeck velocity > 0."""
     known = [f.name for f in fields(AxisFriction)]
     if not isinstance(raw, dict):
         raise RcmKinError(f"{path}: drive_train must be tables [drive_train.<joint>] ({', '.join(DRIVEN)})")
@@ -135,16 +134,7 @@ def _drive_train(path: Path, raw) -> dict[str, AxisFriction]:
         if unknown:
             raise RcmKinError(f"{path}: [drive_train.{joint}] has unknown keys {', '.join(unknown)} "
                               f"(known: {', '.join(known)})")
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in entry.values()):
-            raise RcmKinError(f"{path}: [drive_train.{joint}] values must be numbers")
-        friction = AxisFriction(**{k: float(v) for k, v in entry.items()})
-        values = friction.as_dict()
-        if (not all(np.isfinite(v) for v in values.values()) or abs(friction.presliding_slope) > 20
-                or friction.stribeck_velocity <= 0
-                or any(v < 0 for k, v in values.items() if k != "presliding_slope")):
-            raise RcmKinError(f"{path}: [drive_train.{joint}] values must be finite and >= 0, the stribeck_velocity "
-                              "> 0 and the presliding_slope within +-20 /rad")
-        out[joint] = friction
+        out[joint] = AxisFriction(**check_table(entry, DRIVE_TRAIN, path, f"drive_train.{joint}", DRIVE_TRAIN_DEFAULT))
     return out
 
 

@@ -22,11 +22,12 @@ without the pitch is skipped for lack of its pose.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import os
 from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.hardware import PWM_LIMIT
 from rcm_kin.identification.recorded_law import recover_law
 from rcm_kin.identification.telemetry import TelemetryLog, is_bag, load_telemetry, telemetry_files
@@ -72,12 +73,28 @@ def classify(log: TelemetryLog, joint: str) -> tuple[str, str]:
     return ("step" if step else "closed-loop"), ""
 
 
+MAX_LOGS = 1000       # CSV files one search may find
+MAX_FOLDERS = 10_000  # folders one search may visit (a log folder, not a whole disk)
+
+
+def _log_files(folder: Path) -> list[Path]:
+    """The logs below ``folder`` (CSV and ROS 2 bags: :func:`telemetry_files`), sorted; a search past
+    :data:`MAX_FOLDERS` folders or :data:`MAX_LOGS` logs is refused (unreadable folders are skipped)."""
+    logs = 0
+    for visited, (root, _, names) in enumerate(os.walk(folder), start=1):
+        logs += sum(n.endswith((".csv", ".mcap", ".db3")) for n in names)
+        if visited > MAX_FOLDERS or logs > MAX_LOGS:
+            raise WorkLimitError(f"more than {MAX_FOLDERS} folders or {MAX_LOGS} logs below {folder}: "
+                                 "give the folder of the logs")
+    return telemetry_files(folder, "**/*")
+
+
 def catalog(paths, joints=("roll", "pitch")) -> list[CatalogEntry]:
     """Every log in ``paths`` (files or folders searched recursively: CSV and ROS 2 bags) for each joint."""
     files = []
     for path in map(Path, paths):
         if path.is_dir() and not is_bag(path):
-            files += telemetry_files(path, "**/*")
+            files += _log_files(path)
         elif path.exists():
             files.append(path)
         else:

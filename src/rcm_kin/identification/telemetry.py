@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import LogDataError, RcmKinError
 from rcm_kin.identification.rosbag import BAG_SUFFIXES, is_bag, load_bag
 
 JOINTS = ("roll", "pitch", "insertion")
@@ -46,7 +46,8 @@ def _find(header: list[str], joint: str, quantity: str) -> int | None:
 
 
 def load_telemetry(path: str | Path) -> TelemetryLog:
-    """Read one telemetry CSV (or ROS 2 bag); rows with missing values are dropped."""
+    """Read one telemetry CSV (or ROS 2 bag); a missing or non-finite value in a used column of a
+    CSV is an error naming it."""
     path = Path(path)
     if is_bag(path):
         return load_bag(path)
@@ -73,7 +74,12 @@ def load_telemetry(path: str | Path) -> TelemetryLog:
         raise RcmKinError(f"{path}: not a telemetry log (no complete data rows)")
     columns = {(j, q): _find(header, j, q) for j in JOINTS for q in ("position", "velocity", "effort")}
     used = [time_col] + [i for i in columns.values() if i is not None]
-    data = data[np.all(np.isfinite(data[:, used]), axis=1)]
+    bad = ~np.isfinite(data[:, used])
+    if np.any(bad):          # dropping rows would leave a time gap the fits read as dynamics
+        row, col = np.argwhere(bad)[0]
+        raise LogDataError(f"{path}: {np.count_nonzero(np.any(bad, axis=1))} rows with a missing or non-finite value, "
+                          f"the first in data row {row + 1}, column '{header[used[col]]}'; clean the log (rows are "
+                          "not dropped: the gap would be read as dynamics)")
     pick = lambda q: {j: data[:, columns[(j, q)]] for j in JOINTS if columns[(j, q)] is not None}  # noqa: E731
     position, pwm = pick("position"), pick("velocity")
     if not position or not pwm:

@@ -199,7 +199,11 @@ def fit_transfer_function(u, y, period: float, poles: int, zeros: int | None = N
     if best is None:
         raise RcmKinError("no usable start for the transfer-function fit (is the record informative?)")
     num, den = unpack(best.x)
-    y_fit = _simulate_segments(num, den, period, U, Y, free)
+    try:
+        with np.errstate(all="ignore"):
+            y_fit = _simulate_segments(num, den, period, U, Y, free)
+    except np.linalg.LinAlgError:                 # a model with non-finite coefficients: diverged
+        y_fit = np.full(Y.shape, np.inf)
     if not np.all(np.isfinite(y_fit)) or np.any(np.abs(y_fit) >= 1e6):
         raise RcmKinError("the transfer-function fit diverged (try another order or a shorter --segment)")
     return TransferFunctionFit(num, den, fit_percent(Y.ravel(), y_fit.ravel()), period, segment, y_fit.ravel())

@@ -16,6 +16,7 @@ link in index.html is relative to the report folder, so the folder can be moved 
 
 from __future__ import annotations
 
+import html
 import os
 from pathlib import Path
 
@@ -30,7 +31,26 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     Independent sections run in a pool of ``workers`` processes (default: the cores this process
     may use, at most 4); each writes its own files and returns its data object, and the index
     lists them in a fixed order, so the report is the same whatever the number of workers or the
-    order in which they finish."""
+    order in which they finish. A report that fails leaves an index.html that says so."""
+    from rcm_kin.statics.calibration import calibration_logs
+    from rcm_kin.statics.gravity_map import check_map_size
+
+    if map_points < 2:
+        raise RcmKinError("the effort maps need at least 2 points per axis")
+    check_map_size(map_points**2)
+    if data is not None:
+        calibration_logs(data)           # the measured logs are there before minutes of work
+    out = output_folder(out)
+    try:
+        return _write_sections(out, data, map_points, progress, workers or min(4, len(os.sched_getaffinity(0))))
+    except RcmKinError as exc:           # a folder with files but no index would look like a report
+        (out / "index.html").write_text(f"<!doctype html><title>rcm-kin report: failed</title>"
+                                        f"<p>The report was not completed: {html.escape(str(exc))}</p>\n")
+        raise
+
+
+def _write_sections(out: Path, data, map_points: int, progress: bool, workers: int) -> Path:
+    """The sections (see :func:`write_report`) in a process pool, then index.html."""
     from concurrent.futures import ProcessPoolExecutor
     from multiprocessing import get_context
 
@@ -46,12 +66,6 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     from rcm_kin.report.sections.robustness import robustness_section
     from rcm_kin.report.sections.safety import safety_section
 
-    if map_points < 2:
-        raise RcmKinError("the effort maps need at least 2 points per axis")
-    if data is not None and not Path(data).is_dir():
-        raise RcmKinError(f"no data folder at {data}")
-    workers = workers or min(4, len(os.sched_getaffinity(0)))
-    out = output_folder(out)
     # (label, function, arguments), the longest first (safety ~18 s, the control chain ~15 s, robustness
     # ~26 s on its own Dask cluster, the rest a few s each on this machine) so that the pool's
     # workers finish together

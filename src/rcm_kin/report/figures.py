@@ -66,19 +66,25 @@ def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0) -> Path:
     # a panel is about 400 pixels wide: grids finer than HEATMAP_SAMPLES are drawn from every k-th pose
     rows, cols = (slice(None, None, -(-n // HEATMAP_SAMPLES)) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
     roll, pitch = gmap.roll_deg[cols], gmap.pitch_deg[rows]
-    extent = [roll[0], roll[-1], pitch[0], pitch[-1]]
+    extent = [*_span(roll), *_span(pitch)]
     for col, (joint, k) in enumerate((("roll", 0), ("pitch", 1))):
         for row, (quantity, unit) in enumerate((("pwm", "counts"), ("voltage", "V"))):
             data = getattr(e, quantity)[rows, cols, insertion_index, k]
             ax = axes[row, col]
             im = ax.imshow(data, origin="lower", extent=extent, aspect="auto", cmap="coolwarm",
                            vmin=-np.abs(data).max(), vmax=np.abs(data).max())
-            ax.contour(roll, pitch, data, colors="k", linewidths=0.5, levels=9)
+            if min(data.shape) >= 2:                 # a 1-point axis has no contours
+                ax.contour(roll, pitch, data, colors="k", linewidths=0.5, levels=9)
             ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=f"{joint} holding {quantity} ({unit})")
             fig.colorbar(im, ax=ax)
     fig.suptitle(f"Holding effort at insertion {gmap.insertion[insertion_index] * 1e3:.0f} mm "
                  "(PWM: hardware sign, positive decreases the angle)")
     return _save(fig, path)
+
+
+def _span(values: np.ndarray) -> tuple[float, float]:
+    """Image extent of grid ``values``: first to last, or +-0.5 about a single value."""
+    return (values[0], values[-1]) if values.size > 1 else (values[0] - 0.5, values[0] + 0.5)
 
 
 def _style(k: int, n: int) -> dict:

@@ -32,6 +32,7 @@ from rcm_kin.safety.cbf import barrier_terms, blended_control, cbf_qp_problem, s
 
 SCENARIOS = ("ellipsoid", "slide", "heart", "psm")
 FILTERS = ("blend", "qp", "none")
+MAX_KAPPA = 100.0                                           # m: k0's aggressiveness; the thesis uses 0.01 to 1
 CARTESIAN_TAU = np.array([0.070088, 0.100288, 0.040114])   # s, thesis Appendix F.2
 SLIDE_TAU = 0.11                                            # s
 HEART_PERIOD = 1.1                                          # s (Duindam and Sastry)
@@ -50,8 +51,9 @@ class SafetyRun:
     sigma: np.ndarray         # (N,) blend weight (blend filter); 1 where the QP changed the input
 
     def summary(self) -> dict:
-        """``min_margin`` = -max B (>= 0: never unsafe), ``violations`` = samples with B > 0."""
-        return {"min_margin": float(-self.barrier.max()), "violations": int(np.count_nonzero(self.barrier > 0)),
+        """``min_margin`` = -max B (>= 0: never unsafe), ``violations`` = samples with B > 0 or B not
+        a number (a NaN never reads as safe)."""
+        return {"min_margin": float(-self.barrier.max()), "violations": int(np.count_nonzero(~(self.barrier <= 0))),
                 "max_barrier": float(self.barrier.max()), "samples": int(self.time.size),
                 "filter_active_s": float(np.count_nonzero(self.sigma > 0) * (self.time[1] - self.time[0]))}
 
@@ -144,7 +146,7 @@ class PsmSafetyRun:
 
     def summary(self) -> dict:
         return {"min_margin": float(-self.tip_barrier.max()),
-                "violations": int(np.count_nonzero(self.tip_barrier > 0)),
+                "violations": int(np.count_nonzero(~(self.tip_barrier <= 0))),   # NaN counts as unsafe
                 "reference_min_margin": float(-self.reference.barrier.max()),
                 "min_distance_mm": float(1e3 * _ellipsoid_distance_lower_bound(self.ellipsoid, self.tip)),
                 "samples": int(self.tip_barrier.size)}
@@ -224,4 +226,7 @@ def run_scenario(name: str, filter: str = "blend", **options):
     runs = {"ellipsoid": ellipsoid_run, "slide": slide_run, "heart": heart_run, "psm": psm_run}
     if name not in runs:
         raise RcmKinError(f"unknown scenario '{name}' (choose from {', '.join(SCENARIOS)})")
+    kappa = options.get("kappa", 1.0)
+    if not (np.isfinite(kappa) and 0 < kappa <= MAX_KAPPA):
+        raise RcmKinError(f"kappa is a length in (0, {MAX_KAPPA:g}] m, got {kappa}")
     return runs[name](filter, **options)

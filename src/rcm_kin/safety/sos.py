@@ -138,7 +138,12 @@ class BarrierProgram:
     scale: np.ndarray             # variables are divided by this (to the unit box)
 
     def __post_init__(self):
+        if not (np.isfinite(self.eps_bar) and self.eps_bar > 0):
+            raise RcmKinError(f"program '{self.name}': eps_bar is a finite number > 0, got {self.eps_bar}")
         for label, box in (("X", self.X), ("X0", self.X0), ("Xu", self.Xu)):
+            if not np.all(np.isfinite([*box.lower, *box.upper])):
+                raise RcmKinError(f"program '{self.name}': the set {label} has a non-finite bound "
+                                  f"({list(box.lower)} to {list(box.upper)} m); check --delta, --error-bound, --r-max")
             if not all(lo < hi for lo, hi in zip(box.lower, box.upper)):
                 raise RcmKinError(f"program '{self.name}': the set {label} is empty "
                                   f"({list(box.lower)} to {list(box.upper)} m); check --delta, --error-bound, --r-max")

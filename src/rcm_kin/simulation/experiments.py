@@ -16,7 +16,7 @@ import numpy as np
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, schedule_gains
 from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.state_space import driven_dynamics
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.robot import load_robot
 from rcm_kin.simulation.compiled_loop import (CompiledPlant, compiled_drive_train, compiled_smooth, loop_law,
                                               simulate_compiled)
@@ -100,6 +100,26 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
     law = make_controller(controller, schedule)
     arrays = loop_law(law) if isinstance(plant, CompiledPlant) else None
     if arrays is not None:
-        return simulate_compiled(plant, arrays, law.name, reference, settings, seed=seed, progress=progress)
-    return simulate(plant.step, fast_controller(law) if fast else law, reference, settings, seed=seed,
-                    progress=progress, initial=plant.initial)
+        result = simulate_compiled(plant, arrays, law.name, reference, settings, seed=seed, progress=progress)
+    else:
+        result = simulate(plant.step, fast_controller(law) if fast else law, reference, settings, seed=seed,
+                          progress=progress, initial=plant.initial)
+    check_in_limits(result)
+    return result
+
+
+def check_in_limits(result: SimulationResult) -> None:
+    """Refuse a run whose joints left their limits (or became non-finite): the model means nothing
+    there, and a controller that drives the robot there has failed (the one joint-limit policy)."""
+    psm = load_robot("psm")
+    index = [psm.actuated.index(j) for j in ("roll", "pitch", "insertion")]
+    lower, upper = psm.lower[index], psm.upper[index]
+    position = np.c_[np.radians(result.position[:, :2]), result.position[:, 2]]     # rad, rad, m
+    bad = ~np.isfinite(position) | (position < lower - 1e-6) | (position > upper + 1e-6)
+    if np.any(bad):
+        k, j = np.argwhere(bad)[0]
+        unit, scale = ("m", 1.0) if j == 2 else ("deg", 180 / np.pi)
+        raise JointLimitError(f"the simulated {('roll', 'pitch', 'insertion')[j]} reached {position[k, j] * scale:.4g} "
+                          f"{unit} at t = {result.time[k]:.3f} s, outside its joint range [{lower[j] * scale:.4g}, "
+                          f"{upper[j] * scale:.4g}] {unit}: the closed loop does not hold the robot in its range "
+                          "with these settings (controller, rate, limits)")

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from rcm_kin.control.thesis_reference import SINE_AMPLITUDE_DEG, SINE_CYCLE_S
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.kinematics.teleop import default_teleop_map, teleop_joint_targets
 
@@ -34,9 +34,16 @@ class Reference:
     acceleration: np.ndarray  # (N, 3) per s^2
 
 
+MAX_SAMPLES = 200_000      # controller periods of one run: 500 s at 400 Hz, one to two minutes of simulation
+
+
 def _samples(duration: float, period: float) -> np.ndarray:
     if not (np.isfinite(duration) and duration > 0):
         raise RcmKinError(f"the duration must be a positive number of seconds, got {duration}")
+    samples = duration / period + 1
+    if samples > MAX_SAMPLES:
+        raise WorkLimitError(f"{duration:g} s at {1 / period:g} Hz is {samples:,.0f} controller periods; the limit is "
+                          f"{MAX_SAMPLES:,} (one to two minutes of simulation): shorten the duration or lower the rate")
     return np.arange(int(round(duration / period)) + 1) * period
 
 

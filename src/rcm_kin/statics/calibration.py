@@ -143,9 +143,12 @@ def calibrate(robot: Robot, base: DriveParameters, points) -> CalibrationResult:
 
 
 def calibration_logs(folder: str | Path) -> list[Path]:
-    """The roll step and pitch PRBS logs below a data folder (``psm-sysid`` layout)."""
+    """The roll step and pitch PRBS logs in a data folder (``psm-sysid`` layout), or one level below it."""
     folder = Path(folder)
-    logs = telemetry_files(folder, "**/roll-step/*") + telemetry_files(folder, "**/pitch-prbs/*")
+    if not folder.is_dir():
+        raise RcmKinError(f"no data folder {folder}")
+    logs = [log for kind in ("roll-step", "pitch-prbs") for depth in ("", "*/")
+            for log in telemetry_files(folder, f"{depth}{kind}/*")]
     if not logs:
         raise RcmKinError(f"no roll-step/ or pitch-prbs/ logs (CSV or ROS 2 bags) below {folder}")
     return logs

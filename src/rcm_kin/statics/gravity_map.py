@@ -21,10 +21,22 @@ from tqdm import tqdm
 from rcm_kin.csv_table import write_csv_blocks
 from rcm_kin.dynamics.drive import DRIVEN, DriveEffort, DriveParameters, drive_effort, load_drive_parameters
 from rcm_kin.dynamics.gravity import gravity_batch
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, WorkLimitError
 
 if TYPE_CHECKING:
     from rcm_kin.robot import Robot
+
+
+MAX_POSES = 1_000_000     # poses of one map: about 0.7 GB and two minutes of work
+BYTES_PER_POSE = 720      # peak memory per pose, measured: 300 x 300 poses took 65 MB more than 10 x 10
+
+
+def check_map_size(poses: int) -> None:
+    """Refuse a map of more than :data:`MAX_POSES` poses before anything is allocated, saying what it
+    would need."""
+    if poses > MAX_POSES:
+        raise WorkLimitError(f"a map of {poses:,} poses would need about {poses * BYTES_PER_POSE / 1e9:.3g} GB; "
+                          f"the limit is {MAX_POSES:,} poses (e.g. 1000 x 1000): use fewer points per axis")
 
 
 @dataclass(frozen=True)
@@ -55,14 +67,15 @@ def holding_effort(robot, q, params: str | Path | None = None) -> HoldingEffort:
 
 
 def parse_range(text: str, what: str) -> tuple[float, float, int]:
-    """``LO:HI:N`` -> (LO, HI, N), with a clear error."""
+    """``LO:HI:N`` -> (LO, HI, N), with a clear error; N = 1 is the single value LO (= HI)."""
     try:
         lo, hi, n = text.split(":")
         lo, hi, n = float(lo), float(hi), int(n)
     except ValueError:
         raise RcmKinError(f"{what} must be LO:HI:N (degrees, degrees, count), got '{text}'") from None
-    if n < 1 or not (np.isfinite(lo) and np.isfinite(hi)) or (n > 1 and hi <= lo):
-        raise RcmKinError(f"{what} {text}: need LO < HI and N >= 1")
+    if n < 1 or not (np.isfinite(lo) and np.isfinite(hi)) or (n > 1 and hi <= lo) or (n == 1 and hi != lo):
+        raise RcmKinError(f"{what} {text}: need finite LO < HI and N >= 2, or LO = HI and N = 1")
+    check_map_size(n)
     return lo, hi, n
 
 
@@ -77,6 +90,7 @@ def gravity_map(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg, inser
         if values.min() < lo - 1e-12 or values.max() > hi + 1e-12:
             shown = (np.degrees([lo, hi]) if unit == "deg" else [lo, hi])
             raise RcmKinError(f"{name} range outside the joint limits [{shown[0]:g}, {shown[1]:g}] {unit}")
+    check_map_size(roll_deg.size * pitch_deg.size * insertion.size)
     P, R, I = np.meshgrid(np.radians(pitch_deg), np.radians(roll_deg), insertion, indexing="ij")
     Q = np.column_stack([R.ravel(), P.ravel(), I.ravel()])
     shape = P.shape + (3,)
