@@ -93,10 +93,11 @@ def _write_files(root: Path) -> dict[str, list[str]]:
              "trajectory": p("trajectory_inf.csv", "not_a_trajectory.csv") + odd,
              "out_file": ["", *p("unrelated.txt", "empty_dir", "missing/x/y.toml")],
              "out_dir": ["", *p("unrelated.txt")],
-             "png": ["", *p("view.txt", "missing/x.png")], "html": ["", *p("empty_dir", "missing/x.html")]}
+             "png": ["", *p("view.txt", "missing/x.png")], "html": ["", *p("empty_dir", "missing/x.html")],
+             "xml": ["", *p("unrelated.txt", "empty_dir", "missing/x.xml")]}
     valid = {"params": p("params_good.toml"), "log": p("log_good.csv"), "trajectory": p("trajectory.csv"),
              "out_file": p("new.toml", "fresh.csv"), "out_dir": p("out_dir", "new_dir/deep"),
-             "png": p("view.png"), "html": p("view.html")}
+             "png": p("view.png"), "html": p("view.html"), "xml": p("model.xml")}
     NEVER_VALID.update(w for pool in never.values() for w in pool)
     return {kind: (valid[kind], never[kind]) for kind in valid}
 
@@ -197,6 +198,19 @@ def specs(files: dict[str, list[str]]) -> dict[str, dict]:
                                    "--r-max": numbers("0.017"), "--eps-bar": numbers("0.001"), "--json": None}},
         "report": {"argv": ["report"], "req": {"--out": files["out_dir"]}, "slow": True, "guard": "--map-points=0",
                    "opt": {"--data": files["log"], "--map-points": counts("3", "61"), "--json": None}},
+        "export": {"argv": ["export"], "pos": [robots], "share": 0.5,
+                   "opt": {"--mjcf": files["xml"], "--c": files["out_dir"], "--force": None, "--json": None, **params}},
+        "robustness": {"argv": ["robustness", "psm"], "slow": True, "guard": "--params={bad_params}",
+                       "req": {"--controller": words(["p", "scheduled", "thesis"], ["none"]),
+                               "--experiment": words(["sine", "target"], ["x"]), "--samples": counts("2", "4")},
+                       "opt": {"--seed": counts("0", "7"), "--duration": numbers("0.5", "1e6"),
+                               "--skip": numbers("0.1", "10"), "--workers": counts("1", "2"),
+                               "--batch-size": counts("1", "3"), "--out": files["out_dir"], "--json": None,
+                               **params}},
+        "sweep": {"argv": ["sweep", "psm"], "pos": [words(["counterweights", "weights"], ["x"])],
+                  "req": {"--out": files["out_dir"]}, "slow": True, "guard": "--params={bad_params}",
+                  "opt": {"--points": counts("3", "5"), "--main-mass": [numbers("0.5"), numbers("1.0")],
+                          "--duration": numbers("0.5", "3"), "--workers": counts("1"), "--json": None, **params}},
     }
 
 
@@ -362,7 +376,7 @@ def no_server():
 
 COMMANDS = ["info", "fk", "ik", "gravity", "torque-map", "calibrate", "dynamics", "linearize", "schedule",
             "simulate", "sysid", "greybox", "identify", "predict", "excite", "view", "safety simulate",
-            "safety certify", "report"]
+            "safety certify", "report", "export", "robustness", "sweep"]
 
 
 @pytest.mark.parametrize("command", COMMANDS)

@@ -184,3 +184,20 @@ def test_sysid_cli_user_errors_are_one_line(tmp_path, capsys, extra, message):
     assert main(["sysid", str(path), "--joint", "roll", *extra]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error:") and message in err and err.count("\n") == 1
+
+
+def test_a_cut_off_row_is_left_out_with_a_warning(tmp_path, capsys):
+    """A recording cut off mid-row (its last line short) reads as the rows before it, and says so:
+    one ``warning:`` line on stderr after a successful run, never a silent drop."""
+    t = np.arange(300) * 0.002
+    u = np.where(np.arange(300) >= 100, -15.0, -10.0)
+    y = np.where(np.arange(300) >= 100, 0.01 * (np.arange(300) - 99), 0.0) - 3.0
+    whole = write_log(tmp_path / "whole.csv", zip(t, y, u), ["time", "roll_position", "roll_velocity"])
+    cut = tmp_path / "cut.csv"
+    cut.write_text(whole.read_text() + "0.600000,-1.0\n")
+    with pytest.warns(UserWarning, match="1 rows with a wrong number of fields"):
+        log = load_telemetry(cut)
+    np.testing.assert_array_equal(log.position["roll"], load_telemetry(whole).position["roll"])
+    assert main(["sysid", str(cut), "--joint", "roll", "--json"]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("warning:") and "wrong number of fields" in err and err.count("\n") == 1

@@ -372,12 +372,12 @@ def test_a_killed_worker_does_not_change_the_answer(cluster, study, serial):
 
 def test_cli_errors_are_one_line(capsys):
     assert main(["robustness", "psm", "--controller", "p", "--experiment", "sine", "--samples", "0"]) == 2
-    assert capsys.readouterr().err == "error: --samples must be at least 1 and --seed at least 0, got 0 and 0\n"
+    assert capsys.readouterr().err == "error: --samples: needs at least 1 and at most 1,000,000 samples, got '0'\n"
     assert main(["robustness", "mtm", "--controller", "p", "--experiment", "sine", "--samples", "2"]) == 2
     assert capsys.readouterr().err.startswith("error: ")
     assert main(ARGS + ["--seed", "-1"]) == 2
     err = capsys.readouterr().err
-    assert err == f"error: --samples must be at least 1 and --seed at least 0, got {SAMPLES} and -1\n"
+    assert err.startswith("error: --seed: needs at least 0") and err.count("\n") == 1
     assert main(ARGS + ["--skip", "1"]) == 2                 # the statistics would start after the run
     assert capsys.readouterr().err.startswith("error: the statistics start within the run")
     assert main(ARGS + ["--scheduler", "tcp://127.0.0.1:1", "--workers", "2"]) == 2

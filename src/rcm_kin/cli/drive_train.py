@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rcm_kin.cli.common import (RAW, add_json, add_params, count, emit, finite, new_output, path_text, progress_wanted,
+from rcm_kin.cli.common import (RAW, add_force, add_json, add_params, count, emit, finite, new_output, path_text, progress_wanted,
                                 psm_robot, require_psm)
 
 EPILOG_IDENTIFY = ("example: rcm-kin identify psm ../shared/data --out identified.toml --cv\n"
@@ -48,6 +48,7 @@ def add_predict(sub) -> None:
     p.add_argument("--joint", required=True, choices=("roll", "pitch"))
     add_params(p, "drive parameter TOML with [drive_train.<joint>] (default: the shipped set)")
     p.add_argument("--plot", metavar="FILE.png", help="PNG of measured and predicted angle, stick phases shaded")
+    add_force(p)
     add_json(p, '{"fit_percent", "final_error_deg", "time" (s), "measured" (deg), "predicted" (deg)}')
     p.set_defaults(func=cmd_predict)
 
@@ -87,7 +88,7 @@ def cmd_predict(args) -> None:
     from rcm_kin.identification.identify import predict_file
 
     require_psm(args, "predict uses the PSM's drive trains, not the {robot}")
-    plot = new_output(args.plot, True, (".png",)) if args.plot is not None else None
+    plot = new_output(args.plot, args.force, (".png",)) if args.plot is not None else None
     log, predicted, check = predict_file(load_drive_parameters(args.params), args.log, args.joint)
     payload = {"fit_percent": check.fit_percent, "final_error_deg": check.final_error_deg,
                "time": log.time.tolist(), "measured": np.degrees(log.measured).tolist(),

@@ -4,7 +4,7 @@ holding PWM for the firmware)."""
 
 from __future__ import annotations
 
-from rcm_kin.cli.common import RAW, add_json, add_params, any_robot, emit
+from rcm_kin.cli.common import RAW, add_force, add_json, add_params, any_robot, emit, new_output
 from rcm_kin.errors import RcmKinError
 from rcm_kin.robot import load_robot
 
@@ -21,26 +21,30 @@ def add_export(sub) -> None:
     p.add_argument("--c", metavar="DIR", help="PSM only: write rcm_psm_model.h/.c, the holding PWM (counts) and its "
                                               "gradient as functions of roll, pitch (rad), insertion (m)")
     add_params(p, "drive parameter TOML for the PSM's drives (default: the shipped calibrated set)")
+    add_force(p)
     add_json(p, '{"files": [...]} and, with --c, "operations": N, "functions": [...], "operation_counts": {...}')
     p.set_defaults(func=cmd_export)
 
 
 def cmd_export(args) -> None:
-    if not (args.mjcf or args.c):
+    if args.mjcf is None and args.c is None:
         raise RcmKinError("choose what to write: --mjcf FILE and/or --c DIR")
     robot = load_robot(args.robot)
     if robot.name != "psm" and (args.params or args.c):
         raise RcmKinError(f"--c writes the PSM's holding PWM and --params sets the PSM's drives; the "
                           f"{robot.name} has neither (rcm-kin export psm --c DIR)")
+    mjcf = None if args.mjcf is None else new_output(args.mjcf, args.force, (".xml",))
+    if args.c is not None and not str(args.c).strip():
+        raise RcmKinError("--c: an empty folder path")
     payload, lines = {"files": []}, []
-    if args.mjcf:
+    if mjcf:
         from rcm_kin.dynamics.drive import load_drive_parameters
         from rcm_kin.export.mjcf import write_mjcf
 
         params = load_drive_parameters(args.params) if robot.name == "psm" else None
-        payload["files"].append(str(write_mjcf(robot, args.mjcf, params)))
+        payload["files"].append(str(write_mjcf(robot, mjcf, params)))
         lines.append(f"wrote {payload['files'][-1]}")
-    if args.c:
+    if args.c is not None:
         from rcm_kin.cli.common import driven_model
         from rcm_kin.codegen.psm_model import export_c
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from rcm_kin.cli.common import (RAW, add_force, add_json, add_params, count, driven_model, emit, floats, new_output,
-                                path_text)
+                                path_text, progress_wanted)
 from rcm_kin.errors import RcmKinError, output_folder
 
 MAX_SAMPLES = 100_000     # samples of one step or segment: the logs hold a few thousand
@@ -121,7 +121,8 @@ def cmd_greybox(args) -> None:
             raise RcmKinError(f"no logs (CSV or ROS 2 bags) in {item}")
         paths += found
     out = new_output(args.out, args.force, (".toml",)) if args.out is not None else None
-    fit = fit_greybox(load_drive_parameters(args.params), args.joint, step_logs(paths, args.joint, args.samples))
+    fit = fit_greybox(load_drive_parameters(args.params), args.joint, step_logs(paths, args.joint, args.samples),
+                      progress=progress_wanted(args))
     payload = fit.as_dict()
     lines = [f"{args.joint} grey-box fit on {len(fit.logs)} step logs:"]
     lines += [f"  {n:16} {b:.6g} -> {a:.6g}" for n, b, a in zip(fit.names, fit.before, fit.after)]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from rcm_kin.cli.common import RAW, add_json, add_params, emit, psm_robot, require_psm
+from rcm_kin.cli.common import RAW, add_json, add_params, count, emit, finite, path_text, psm_robot, require_psm
 from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.simulation.controllers import CONTROLLERS
 
@@ -27,7 +27,8 @@ def add_scheduler(p) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on the Dask cluster of this scheduler (tcp://HOST:PORT; start one with `dask scheduler` "
                         "and workers with `dask worker ADDRESS`); default: an embedded local cluster")
-    p.add_argument("--workers", type=int, help="worker processes of the embedded cluster (default: one per core)")
+    p.add_argument("--workers", type=count(1, 256, "workers"),
+                   help="worker processes of the embedded cluster (default: one per core)")
 
 
 def add_robustness(sub) -> None:
@@ -37,18 +38,19 @@ def add_robustness(sub) -> None:
                    help="a controller to judge (repeat the option for several; as in `simulate`)")
     p.add_argument("--experiment", required=True, choices=("sine", "step", "target"),
                    help="the experiment each sample runs (as in `simulate`)")
-    p.add_argument("--samples", type=int, required=True, help="parameter sets drawn")
-    p.add_argument("--seed", type=int, default=0, help="seed of the draws (default 0): sample i uses "
+    p.add_argument("--samples", type=count(1, 1_000_000, "samples"), required=True, help="parameter sets drawn")
+    p.add_argument("--seed", type=count(0, 2**32 - 1, ""), default=0, help="seed of the draws (default 0): sample i uses "
                                                        "SeedSequence(seed).spawn(samples)[i]")
-    p.add_argument("--duration", type=float, help="simulated seconds (default: the experiment's, as `simulate`)")
-    p.add_argument("--skip", type=float, default=0.0, help="leave the first S seconds out of the statistics (0)")
+    p.add_argument("--duration", type=finite(0.0, 10_000.0, "s", open_lo=True),
+                   help="simulated seconds (default: the experiment's, as `simulate`)")
+    p.add_argument("--skip", type=finite(0.0, 10_000.0, "s"), default=0.0, help="leave the first S seconds out of the statistics (0)")
     add_params(p, "nominal drive parameter TOML: the schedule is designed on it (default: the shipped set)")
     p.add_argument("--uncertainty", metavar="FILE",
                    help="`rcm-kin identify ... --json` output: its (jackknife, else Gauss-Newton) standard errors "
                         "set the drive trains' spreads (default: the stated default spreads)")
-    p.add_argument("--batch-size", type=int, help="samples per Dask task (default: about 4 tasks per worker)")
+    p.add_argument("--batch-size", type=count(1, 1_000_000, "samples"), help="samples per Dask task (default: about 4 tasks per worker)")
     add_scheduler(p)
-    p.add_argument("--out", metavar="DIR", help="write the empirical-CDF figure (PNG) into DIR")
+    p.add_argument("--out", metavar="DIR", type=path_text, help="write the empirical-CDF figure (PNG) into DIR")
     add_json(p, '{"samples", "seed", "experiment", "controllers": {NAME: {"roll": {"max_error_deg": {"p5", "median", '
                 '"p95", "worst"}, "mean_error_deg": {...}, "saturated_fraction"}, "pitch": {...}, "unstable_fraction", '
                 '"stability": {...} | null}}, "uncertainty": {PARAMETER: {"nominal", "sigma", "distribution", '
@@ -63,14 +65,8 @@ def cmd_robustness(args) -> None:
     from rcm_kin.robustness.task import Study
 
     require_psm(args, "the robustness runs simulate the PSM's driven joints, not '{robot}'")
-    if args.samples < 1 or args.seed < 0:
-        raise RcmKinError(f"--samples must be at least 1 and --seed at least 0, got {args.samples} and {args.seed}")
-    if args.workers is not None and args.workers < 1:
-        raise RcmKinError(f"--workers must be at least 1, got {args.workers}")
     if args.workers is not None and args.scheduler:
         raise RcmKinError("--workers sizes the embedded cluster; a --scheduler's cluster has its own workers")
-    if args.batch_size is not None and args.batch_size < 1:
-        raise RcmKinError(f"--batch-size must be at least 1, got {args.batch_size}")
     params = load_drive_parameters(args.params)
     errors = read_standard_errors(args.uncertainty) if args.uncertainty else None
     study = Study(params, uncertain_parameters(params, errors), tuple(dict.fromkeys(args.controller)),
@@ -100,20 +96,21 @@ def add_sweep(sub) -> None:
     p.add_argument("design", choices=("counterweights", "weights"),
                    help="counterweights: masses against holding effort over the workspace; weights: LQR/LQI budgets "
                         "against tracking and PWM use on the sinusoid")
-    p.add_argument("--main-mass", nargs="+", type=float,
+    p.add_argument("--main-mass", nargs="+", type=finite(0.0, 100.0, "kg", open_lo=True),
                    default=[MAIN_COUNTERWEIGHT[0] * f for f in (0.5, 0.75, 1, 1.25)],
                    help="counterweights: main counterweight masses, kg (default: 0.5-1.25 x osMDV's)")
-    p.add_argument("--dpm-mass", nargs="+", type=float, default=[DPM_COUNTERWEIGHT[0] * f for f in (0.5, 1, 1.5)],
+    p.add_argument("--dpm-mass", nargs="+", type=finite(0.0, 100.0, "kg", open_lo=True), default=[DPM_COUNTERWEIGHT[0] * f for f in (0.5, 1, 1.5)],
                    help="counterweights: DPM counterweight masses, kg (default: 0.5-1.5 x osMDV's)")
-    p.add_argument("--points", type=int, default=13, help="counterweights: workspace grid points per axis (13)")
-    p.add_argument("--error-deg", nargs="+", type=float, default=[0.5, 1.0, 2.0, 4.0],
+    p.add_argument("--points", type=count(2, 201, "points per axis"), default=13, help="counterweights: workspace grid points per axis (13)")
+    p.add_argument("--error-deg", nargs="+", type=finite(0.0, 90.0, "deg", open_lo=True), default=[0.5, 1.0, 2.0, 4.0],
                    help="weights: roll and pitch error budgets, deg (default 0.5 1 2 4)")
-    p.add_argument("--pwm-fraction", nargs="+", type=float, default=[0.5, 1.0],
+    p.add_argument("--pwm-fraction", nargs="+", type=finite(0.0, 1.0, open_lo=True), default=[0.5, 1.0],
                    help="weights: PWM budgets as fractions of the firmware limits (default 0.5 1)")
-    p.add_argument("--duration", type=float, help="weights: simulated seconds of the sinusoid (default 6)")
+    p.add_argument("--duration", type=finite(0.0, 600.0, "s", open_lo=True),
+                   help="weights: simulated seconds of the sinusoid (default 6)")
     add_params(p)
     add_scheduler(p)
-    p.add_argument("--out", metavar="DIR", required=True, help="folder for sweep_<design>.csv and .png")
+    p.add_argument("--out", metavar="DIR", type=path_text, required=True, help="folder for sweep_<design>.csv and .png")
     add_json(p, '{"design", "rows": [{column: value}], "table", "figure"}')
     p.set_defaults(func=cmd_sweep)
 
@@ -129,13 +126,9 @@ def cmd_sweep(args) -> None:
     require_psm(args, "the design sweeps are of the PSM, not '{robot}'")
     params = load_drive_parameters(args.params)
     if args.design == "counterweights":
-        if min(args.main_mass + args.dpm_mass) <= 0 or args.points < 2:
-            raise RcmKinError("counterweight masses must be positive (kg) and --points at least 2")
         points, task, shared = list(product(args.main_mass, args.dpm_mass)), sweeps.counterweight_batch, \
             {"params": params, "points": args.points}
     else:
-        if min(args.error_deg + args.pwm_fraction) <= 0:
-            raise RcmKinError("--error-deg and --pwm-fraction must be positive")
         points, task, shared = list(product(args.error_deg, args.pwm_fraction)), sweeps.weights_batch, \
             {"params": params, "duration": args.duration}
     out = output_folder(args.out)

@@ -25,6 +25,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 from scipy.optimize import least_squares
+from tqdm import tqdm
 
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, with_joint, write_parameters
 from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
@@ -119,12 +120,13 @@ def _residual_function(params: DriveParameters, joint: str, log: StepLog) -> ca.
     return ca.Function("residual", [p], [r, ca.jacobian(r, p)])
 
 
-def fit_greybox(params: DriveParameters, joint: str, logs: list[StepLog]) -> GreyBoxFit:
+def fit_greybox(params: DriveParameters, joint: str, logs: list[StepLog], progress: bool = False) -> GreyBoxFit:
     """Fit the extra inertia, viscous friction and Coulomb width of ``joint`` shared by all step
     logs, with a Coulomb friction per log (it varies with the pose: the steps are barely larger
     than the friction, so a few per cent of it decide how far each one moves). The fitted set
     takes the median Coulomb; ``fit_after`` is that set's fit, ``fit_per_log_friction`` the
-    fit with each log's own value."""
+    fit with each log's own value. ``progress``: a bar (stderr) counting the simulations of the
+    logs (the least-squares iterations have no known total)."""
     if joint not in ("roll", "pitch"):
         raise RcmKinError(f"the grey-box fit is for the roll or the pitch, not '{joint}'")
     functions = [_residual_function(params, joint, log) for log in logs]
@@ -159,9 +161,13 @@ def fit_greybox(params: DriveParameters, joint: str, logs: list[StepLog]) -> Gre
     # friction makes local minima: start from the given set and from a neutral one (no extra
     # inertia or viscous friction, a wide Coulomb law), keep the better
     starts = [start_set, np.array([0.0, 0.0, start_set[2], NEUTRAL_WIDTH])]
-    solutions = [least_squares(lambda z: np.concatenate([r for r, _ in evaluate(z)]),
-                               np.clip(np.r_[s[shared], np.full(n, s[2])], lower, upper), jac=jacobian,
-                               bounds=(lower, upper), x_scale="jac") for s in starts]
+    with tqdm(desc="greybox", unit="simulation", disable=not progress) as bar:
+        def residual(z):
+            bar.update(n)
+            return np.concatenate([r for r, _ in evaluate(z)])
+
+        solutions = [least_squares(residual, np.clip(np.r_[s[shared], np.full(n, s[2])], lower, upper), jac=jacobian,
+                                   bounds=(lower, upper), x_scale="jac") for s in starts]
     z = min(solutions, key=lambda sol: sol.cost).x
     per_log = z[3:]
     fitted = np.array([z[0], z[1], float(np.median(per_log)), z[2]])

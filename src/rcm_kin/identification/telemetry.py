@@ -10,6 +10,7 @@ same telemetry (``.mcap``, ``.db3``) are read by :mod:`rcm_kin.identification.ro
 from __future__ import annotations
 
 import csv
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -66,8 +67,12 @@ def load_telemetry(path: str | Path) -> TelemetryLog:
     time_col = next((header.index(c) for c in _TIME_COLUMNS if c in header), None)
     if time_col is None:
         raise RcmKinError(f"{path}: not a telemetry log (no time column: expected one of {', '.join(_TIME_COLUMNS)})")
+    complete = [r for r in rows[1:] if len(r) == len(header)]
+    if len(complete) < len(rows) - 1:       # a recording cut off mid-row, typically its last line
+        warnings.warn(f"{path}: {len(rows) - 1 - len(complete)} rows with a wrong number of fields left out "
+                      f"(of {len(rows) - 1})", stacklevel=2)
     try:
-        data = np.array([[float(x) if x.strip() else np.nan for x in r] for r in rows[1:] if len(r) == len(header)])
+        data = np.array([[float(x) if x.strip() else np.nan for x in r] for r in complete])
     except ValueError:
         raise RcmKinError(f"{path}: not a telemetry log (non-numeric values)") from None
     if data.ndim != 2 or len(data) < 2:
