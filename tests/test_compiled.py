@@ -91,6 +91,7 @@ def test_no_compiler_falls_back_with_one_line(cache, model, capsys, tmp_path, mo
     assert not cache.exists()
 
 
+@needs_compiler
 def test_unwritable_cache_falls_back_with_one_line(model, monkeypatch, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
