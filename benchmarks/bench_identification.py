@@ -108,10 +108,10 @@ def identification(data: Path, repeats: int, cv_runs: tuple[bool, ...]) -> None:
     plain = drive_train.residuals
     counter = {"calls": 0, "logs": 0, "seconds": 0.0}
 
-    def counted(friction, plants, logs, floor=0.0):
+    def counted(friction, plants, logs):
         start = time.perf_counter()
         try:
-            return plain(friction, plants, logs, floor)
+            return plain(friction, plants, logs)
         finally:
             counter["calls"] += 1
             counter["logs"] += len(logs)
