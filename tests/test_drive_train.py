@@ -81,5 +81,8 @@ def test_identify_contract(shared_data, capsys, tmp_path):
     assert loaded.drive_train["roll"].viscous == pytest.approx(result["parameters"]["roll"]["viscous"], rel=1e-12)
     assert loaded["roll"].extra_inertia == pytest.approx(result["parameters"]["roll"]["extra_inertia"], rel=1e-12)
     assert np.mean([c["fit_percent"] for c in result["fits"]["roll"].values()]) > 65.0
+    free = set(result["standard_errors"]["roll"]) | set(result["undetermined"]["roll"])
+    assert free == {"extra_inertia", "viscous", "coulomb", "presliding_stiffness", "presliding_slope",
+                    "presliding_force"}        # every free parameter: a finite standard error, or said undetermined
     code, _, err = run(capsys, "identify", "psm", *map(str, steps), "--out", str(out))
     assert code == 2 and "--force" in err and err.count("\n") == 1

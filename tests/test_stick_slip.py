@@ -158,3 +158,20 @@ def test_the_rest_a_log_starts_from_is_an_equilibrium():
     assert state[4] == state[2]                                                    # spring unloaded
     angle = simulate_axis(friction, shifted, np.full(1000, -20.0), 1e-3, state.copy())
     assert np.max(np.abs(angle - 0.3)) < 1e-12
+
+
+def test_a_progress_bar_does_not_stop_the_search():
+    """The fit's progress hook is called once per generation and cannot end the search: a hook that
+    returns True (as ``tqdm.update`` does when it redraws; scipy halts on a true callback) gives
+    the same estimate as no hook, after the same number of generations."""
+    from rcm_kin.identification.drive_train import fit_friction, search_for
+
+    truth = AxisFriction(extra_inertia=0.4, viscous=6.0, coulomb=0.3, presliding_stiffness=20.0,
+                         presliding_slope=2.0, presliding_force=1.5)
+    plant, logs = synthetic_logs(truth, count=2)
+    calls = []
+    quiet, _ = fit_friction(search_for(("presliding",)), [plant] * 2, logs, seed=2, generations=8)
+    hooked, _ = fit_friction(search_for(("presliding",)), [plant] * 2, logs, seed=2, generations=8,
+                             progress=lambda: calls.append(1) or True)
+    assert hooked == quiet
+    assert len(calls) >= 2

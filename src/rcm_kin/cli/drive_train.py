@@ -36,7 +36,7 @@ def add_identify(sub) -> None:
     p.add_argument("--seed", type=count(0, 2**32 - 1), default=0, help="seed of the evolutionary search (default 0)")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     add_params(p, "starting drive parameter TOML (default: the shipped set)")
-    add_json(p, '{"parameters", "standard_errors", "jackknife_standard_errors", "logs", "fits", '
+    add_json(p, '{"parameters", "standard_errors", "jackknife_standard_errors", "undetermined", "logs", "fits", '
                 '"cross_validation", "skipped", "written"}')
     p.set_defaults(func=cmd_identify)
 
@@ -72,7 +72,7 @@ def _identify_lines(result) -> list[str]:
     lines = []
     for joint, r in result.joints.items():
         lines.append(f"{joint}: {len(r.fits)} records from {len(r.logs)} logs")
-        lines += [f"  {name:22} {getattr(r.friction, name):.5g} +- {r.standard_errors[name]:.2g} (local)"
+        lines += [f"  {name:22} {getattr(r.friction, name):.5g} " + _sigma_text(r.standard_errors[name]) + " (local)"
                   + (f", +- {r.jackknife_errors[name]:.2g} (over the folds)" if r.jackknife_errors else "")
                   for name in r.standard_errors]
         if r.cross_validation:
@@ -81,6 +81,10 @@ def _identify_lines(result) -> list[str]:
                       f"{c.stick_time:.2f} (model {c.predicted_stick_time:.2f})" for c in r.cross_validation]
     lines += [f"skipped {e.path.name} ({e.joint}): {e.reason}" for e in result.skipped]
     return lines
+
+
+def _sigma_text(sigma: float) -> str:
+    return f"+- {sigma:.2g}" if np.isfinite(sigma) else "(not determined by these logs)"
 
 
 def cmd_predict(args) -> None:

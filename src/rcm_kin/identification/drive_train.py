@@ -220,12 +220,21 @@ def fit_friction(search: Search, plants: list[AxisPlant], logs: list[AxisLog], s
     objective = lambda x: float(np.sum(residuals(search.friction(x), plants, logs) ** 2))  # noqa: E731
     evolved = differential_evolution(objective, search.bounds(), seed=seed, maxiter=generations, popsize=8,
                                      tol=1e-6, polish=False,
-                                     callback=(lambda *a, **k: progress()) if progress else None)
+                                     callback=_generation_callback(progress) if progress else None)
     lo, hi = np.array(search.bounds()).T
     residual = lambda x: residuals(search.friction(x), plants, logs)  # noqa: E731
     polished = least_squares(residual, evolved.x, bounds=(lo, hi), diff_step=1e-4, max_nfev=60)
     best = polished.x if polished.cost * 2 <= evolved.fun else evolved.x
     return search.friction(best), _standard_errors(search, residual, best)
+
+
+def _generation_callback(progress):
+    """``differential_evolution``'s callback calling ``progress()`` once per generation. It returns
+    None whatever ``progress`` returns: scipy halts the search on a true return, and a progress
+    bar's ``update()`` returns True whenever it redraws."""
+    def callback(*args, **kwargs) -> None:
+        progress()
+    return callback
 
 
 def _jacobian(search: Search, function, x: np.ndarray, step: float = 1e-2) -> np.ndarray:

@@ -54,13 +54,21 @@ class Identification:
             return {"fit_percent": c.fit_percent, "travel_deg": c.travel_deg, "final_error_deg": c.final_error_deg,
                     "stick_time_s": c.stick_time, "predicted_stick_time_s": c.predicted_stick_time}
         return {"parameters": {j: r.friction.as_dict() for j, r in self.joints.items()},
-                "standard_errors": {j: r.standard_errors for j, r in self.joints.items()},
-                "jackknife_standard_errors": {j: r.jackknife_errors for j, r in self.joints.items()},
+                "standard_errors": {j: _finite(r.standard_errors) for j, r in self.joints.items()},
+                "jackknife_standard_errors": {j: _finite(r.jackknife_errors) for j, r in self.joints.items()},
+                "undetermined": {j: [n for n, v in r.standard_errors.items() if not np.isfinite(v)]
+                                 for j, r in self.joints.items()},
                 "logs": {j: list(r.logs) for j, r in self.joints.items()},
                 "fits": {j: {c.name: check(c) for c in r.fits} for j, r in self.joints.items()},
                 "cross_validation": {j: {c.name: check(c) for c in r.cross_validation}
                                      for j, r in self.joints.items()},
                 "skipped": {f"{e.path.name} ({e.joint})": e.reason for e in self.skipped}}
+
+
+def _finite(errors: dict[str, float]) -> dict[str, float]:
+    """The standard errors the data determine (a parameter the fit's residuals do not move has a
+    NaN one: listed under ``undetermined`` instead)."""
+    return {n: v for n, v in errors.items() if np.isfinite(v)}
 
 
 def base_model(params: DriveParameters) -> DrivenDynamics:
