@@ -54,12 +54,13 @@ def drive_train_section(out: Path, data: Path, joint: str = "roll", cv: bool = F
                                  folder / f"predict_{Path(g.name).stem}.png", f"{g.name}: shipped model, fit "
                                  f"{c.fit_percent:.1f} %")
         figures.append((g.name, relative(path, out)))
-    rows = [[c.name, f"{c.fit_percent:.1f}", f"{x.fit_percent:.1f}" if x else "", f"{c.travel_deg:+.2f}",
-             f"{x.final_error_deg:+.2f}" if x else "", f"{100 * x.travel_error:.0f} %" if x else "",
-             f"{c.stick_time:.2f}", f"{x.predicted_stick_time:.2f}" if x else ""]
-            for c, x in zip(shipped, crossed or [None] * len(shipped))]
-    header = ["log", "fit % (shipped)", "fit % (left out)", "travel (deg)", "final error, left out (deg)",
-              "travel error", "stick time (s)", "stick time, left out (s)"]
+    header = ["log", "fit % (shipped)", "travel (deg)", "final error (deg)", "stick time (s)", "model's stick time (s)"]
+    rows = [[c.name, f"{c.fit_percent:.1f}", f"{c.travel_deg:+.2f}", f"{c.final_error_deg:+.2f}", f"{c.stick_time:.2f}",
+             f"{c.predicted_stick_time:.2f}"] for c in shipped]
+    if crossed:                              # the left-out columns only where they were computed
+        header += ["fit % (left out)", "final error, left out (deg)", "travel error, left out"]
+        rows = [r + [f"{x.fit_percent:.1f}", f"{x.final_error_deg:+.2f}", f"{100 * x.travel_error:.0f} %"]
+                for r, x in zip(rows, crossed)]
     values = Table.of([[k, f"{v:.4g}"] for k, v in friction.as_dict().items() if v], ["parameter", "value (SI)"])
     return DriveTrainSection(joint, values, Table.of(rows, header), tuple(figures),
                              float(np.mean([x.fit_percent for x in crossed])) if crossed else float("nan"),
