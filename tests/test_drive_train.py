@@ -86,3 +86,18 @@ def test_identify_contract(shared_data, capsys, tmp_path):
                     "presliding_force"}        # every free parameter: a finite standard error, or said undetermined
     code, _, err = run(capsys, "identify", "psm", *map(str, steps), "--out", str(out))
     assert code == 2 and "--force" in err and err.count("\n") == 1
+
+
+def test_identify_pitch_in_its_recorded_loop(shared_data, capsys, tmp_path):
+    """The pitch from a PRBS log, simulated with the controller read back from it: the whole
+    command succeeds with strict JSON (its success path, which the fuzzer's bad-input guard never
+    reaches), and the record is predicted well above the zero of a constant guess."""
+    logs = [shared_data / "psm-sysid" / "pitch-prbs" / "prbs_roll_0_pitch_15.csv"]
+    code, text, err = run(capsys, "identify", "psm", *map(str, logs), "--joint", "pitch",
+                          "--out", str(tmp_path / "pitch.toml"), "--json")
+    assert code == 0, err
+    result = json.loads(text)
+    fits = [c["fit_percent"] for c in result["fits"]["pitch"].values()]
+    assert len(fits) == 1 and fits[0] > 40.0
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    assert "pitch" in load_drive_parameters(tmp_path / "pitch.toml").drive_train

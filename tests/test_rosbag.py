@@ -107,15 +107,27 @@ def two_topic_bag(tmp_path) -> Path:
 def test_topic_choice_missing_fields_and_recording_time(two_topic_bag):
     with pytest.raises(RcmKinError, match=r"no sensor_msgs/msg/JointState topic /psm_joint_telemetry .*/arm/joints"):
         load_telemetry(two_topic_bag)
-    with telemetry_topic("/arm/joints"):
+    with telemetry_topic("/arm/joints"), pytest.warns(UserWarning, match="1 messages missing a joint's field"):
         log = load_telemetry(two_topic_bag)
-    keep = [0, 1, 3, 4]                      # message 2 has no efforts: dropped, as an incomplete CSV row
+    keep = [0, 1, 3, 4]                      # message 2 has no efforts: left out with a warning, as a cut CSV row
     np.testing.assert_allclose(log.time, np.array(keep) * 2.5e-3, rtol=0, atol=1e-15)
     np.testing.assert_array_equal(log.position["pitch"], keep)
     np.testing.assert_array_equal(log.position["roll"], -np.array(keep))
     np.testing.assert_array_equal(log.pwm["pitch"], 5 * np.array(keep))
     np.testing.assert_array_equal(log.setpoint["roll"], np.ones(4))
     assert "insertion" not in log.position
+
+
+def test_a_non_finite_message_is_an_error(tmp_path):
+    """A NaN in a bag is refused like a NaN cell in a CSV, naming the field: never a silent gap."""
+    from rcm_kin.errors import LogDataError
+
+    stamp = Decimal(1)
+    messages = [(10**9 + k, _joint_state(stamp + Decimal(k) / 400, ["roll"], [float("nan") if k == 3 else k],
+                                         [1.0], [0.0])) for k in range(6)]
+    bag = write_bag(tmp_path / "nan", "MCAP", {"/psm_joint_telemetry": messages})
+    with pytest.raises(LogDataError, match="non-finite roll position, the first the 4th"):
+        load_telemetry(bag)
 
 
 def test_cli_topic_option_and_one_line_errors(two_topic_bag, tmp_path, capsys):

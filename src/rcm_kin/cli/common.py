@@ -151,13 +151,19 @@ def driven_model(params: str | None, coulomb: bool):
     return driven_dynamics(load_robot("psm"), load_drive_parameters(params), coulomb=coulomb)
 
 
-def emit(args, payload: dict, text: str) -> None:
-    """Print ``payload`` as strict JSON with ``--json``, else ``text``. Either way a non-finite number
-    in ``payload`` is a user error naming where it is: a result is finite or it is not printed."""
+def check_finite(payload: dict) -> None:
+    """A user error naming the first non-finite number in ``payload`` (call it before writing files
+    from a result, so that a refused result leaves nothing behind)."""
     where = _non_finite(payload)
     if where:
         raise NonFiniteResultError(f"the result is not finite ({where}): the inputs are outside what the model "
                                    "can compute; check the parameter file and the numbers given")
+
+
+def emit(args, payload: dict, text: str) -> None:
+    """Print ``payload`` as strict JSON with ``--json``, else ``text``. Either way a non-finite number
+    in ``payload`` is a user error naming where it is: a result is finite or it is not printed."""
+    check_finite(payload)
     print(json.dumps(payload, allow_nan=False) if getattr(args, "json", False) else text)
 
 

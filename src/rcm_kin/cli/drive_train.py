@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rcm_kin.cli.common import (RAW, add_force, add_json, add_params, count, emit, finite, new_output, path_text, progress_wanted,
-                                psm_robot, require_psm)
+from rcm_kin.cli.common import (RAW, add_force, add_json, add_params, check_finite, count, emit, finite, new_output,
+                                path_text, progress_wanted, psm_robot, require_psm)
 
 EPILOG_IDENTIFY = ("example: rcm-kin identify psm ../shared/data --out identified.toml --cv\n"
                    "         rcm-kin predict psm roll_step_response_roll_0_pitch_0.csv --joint roll "
@@ -64,6 +64,7 @@ def cmd_identify(args) -> None:
     header = ["Drive parameters with drive trains identified by rcm-kin identify from:"]
     header += [f"  {j}: {', '.join(r.logs)}" for j, r in result.joints.items()]
     payload = result.as_dict()
+    check_finite(payload)                  # a refused result writes no file
     payload["written"] = str(write_parameters(result.params, out, "\n".join(header)))
     emit(args, payload, "\n".join(_identify_lines(result) + [f"wrote {out}"]))
 

@@ -36,6 +36,12 @@ def cmd_export(args) -> None:
     mjcf = None if args.mjcf is None else new_output(args.mjcf, args.force, (".xml",))
     if args.c is not None and not str(args.c).strip():
         raise RcmKinError("--c: an empty folder path")
+    if args.c is not None and not args.force:
+        from rcm_kin.codegen.psm_model import c_files
+
+        existing = [f.name for f in c_files(args.c) if f.exists()]
+        if existing:
+            raise RcmKinError(f"{args.c} already holds {', '.join(existing)}: choose another folder or add --force")
     payload, lines = {"files": []}, []
     if mjcf:
         from rcm_kin.dynamics.drive import load_drive_parameters

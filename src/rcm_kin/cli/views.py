@@ -6,6 +6,7 @@ from pathlib import Path
 
 from rcm_kin.cli.common import (RAW, add_force, add_json, any_robot, count, emit, joint_values, new_output,
                                 path_text, progress_wanted)
+from rcm_kin.errors import RcmKinError
 from rcm_kin.robot import load_robot
 from rcm_kin.statics.gravity_map import MAX_POSES
 
@@ -54,6 +55,8 @@ def cmd_view(args) -> None:
     robot = load_robot(args.robot)
     q = joint_values(robot, args)
     frames = tuple(args.frames or ())
+    if args.renderer != "matplotlib" and args.png is None:
+        raise RcmKinError(f"--renderer {args.renderer} draws the --png picture: give --png FILE.png")
     png = None if args.png is None else new_output(args.png, args.force, (".png",))
     page = None if args.html is None else new_output(args.html, args.force, (".html", ".htm"))
     written = []

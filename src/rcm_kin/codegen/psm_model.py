@@ -57,14 +57,18 @@ def _header(function: CFunction, source: str, held: str) -> str:
         f"#ifndef {guard}", f"#define {guard}", "", f"{function.prototype};", "", f"#endif /* {guard} */", ""])
 
 
+def c_files(folder: str | Path) -> tuple[Path, Path]:
+    """``(header, code)``: the two files :func:`export_c` writes into ``folder``."""
+    return Path(folder) / f"{PREFIX}_model.h", Path(folder) / f"{PREFIX}_model.c"
+
+
 def export_c(model: DrivenDynamics, folder: str | Path, source: str = "") -> CExport:
     """Write ``rcm_psm_model.h`` and ``rcm_psm_model.c`` into ``folder`` (created).
 
     ``source``: where the drive parameters came from, quoted in the header."""
     folder = Path(folder)
     function = c_function(holding_pwm_function(model), f"{PREFIX}_holding_pwm", ["q"], ["pwm", "dpwm_dq"])
-    header = folder / f"{PREFIX}_model.h"
-    code = folder / f"{PREFIX}_model.c"
+    header, code = c_files(folder)
     joints = ", ".join(DRIVEN)
     try:
         folder.mkdir(parents=True, exist_ok=True)

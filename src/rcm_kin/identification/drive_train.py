@@ -70,11 +70,21 @@ class AxisLog:
 
 
 def whole_log(path: str | Path, joint: str, period: float | None = PERIOD) -> AxisLog:
-    """All of ``joint``'s record in the log at ``path`` on a ``period`` s grid (None: the log's
-    median interval), from its first sample (taken at rest); the other axis held at its mean
-    logged angle (0 when not logged)."""
+    """All of ``joint``'s record in the log at ``path`` on a ``period`` s grid (the PWM held, the
+    angle interpolated), or with ``period`` None the logged samples themselves as controller ticks
+    at their mean interval (a closed-loop log: the firmware acted once per logged sample; its
+    time stamps are whole milliseconds, so intervals read 2 or 3 ms around a 2.4 ms loop). From
+    its first sample (taken at rest); the other axis held at its mean logged angle (0 when not
+    logged)."""
     log = load_telemetry(path)
-    u, y, period = resample(log, joint, period)
+    if period is None:
+        log.require(joint)
+        t, u, y = log.time, log.pwm[joint], log.position[joint]
+        if t.size < 10 or not t[-1] > t[0]:
+            raise RcmKinError(f"{Path(path).name}: too few time-stamped samples to identify from")
+        period = float((t[-1] - t[0]) / (t.size - 1))
+    else:
+        u, y, period = resample(log, joint, period)
     pose = np.array([0.0, 0.0, HOME_INSERTION])
     for k, other in enumerate(("roll", "pitch")):
         if other in log.position and other != joint:
@@ -105,9 +115,10 @@ def axis_log(path: str | Path, joint: str, after: float = AFTER_STEP) -> AxisLog
 
 def closed_loop_log(path: str | Path, joint: str, start: float = 0.0, duration: float | None = None,
                     min_rest: float = 0.05) -> AxisLog:
-    """``duration`` s of a closed-loop log of ``joint`` on its own sample period, from its first
-    rest (the angle unchanged for at least ``min_rest`` s) after ``start`` s, with the law that ran
-    (:func:`recover_law`) and its excitation. A log whose law is not recovered is a clear error."""
+    """``duration`` s of a closed-loop log of ``joint``, its samples as the controller's ticks
+    (:func:`whole_log` with no resampling), from its first rest (the angle unchanged for at least
+    ``min_rest`` s) after ``start`` s, with the law that ran (:func:`recover_law`, on the same ticks)
+    and its excitation. A log whose law is not recovered is a clear error."""
     law = recover_law(load_telemetry(path), joint, float(PWM_LIMIT[("roll", "pitch").index(joint)]))
     name = Path(path).name
     if law.problem():

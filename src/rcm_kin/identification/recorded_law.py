@@ -21,9 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.telemetry import TelemetryLog
 
-EXPLAINED = 0.8        # least fraction of samples the law must reproduce to EXACT counts
+EXPLAINED = 0.95       # least fraction of samples the law must reproduce to EXACT counts
 EXCITED = 1.0          # PWM counts: least excitation amplitude (a plain holding loop identifies nothing)
 EXACT = 0.5            # PWM counts
 SWEEPS = 30            # sign / least-squares alternations (they settle in a handful)
@@ -65,11 +66,14 @@ class RecordedLaw:
 
 def recover_law(log: TelemetryLog, joint: str, limit: float) -> RecordedLaw:
     """The best linear law with a binary excitation for ``joint`` in ``log`` (see the module
-    text), on the log's own time stamps; check :attr:`RecordedLaw.explained` before using it."""
-    t = log.time
-    keep = np.r_[True, np.diff(t) > 0]
-    t, y, u = t[keep], np.radians(log.position[joint][keep]), log.pwm[joint][keep]
-    rate = np.r_[0.0, np.diff(y) / np.diff(t)]
+    text), each logged sample one controller tick, the difference taken over the mean logged
+    interval (the firmware's period: its stamps are whole milliseconds, 2 or 3 ms around a 2.4 ms
+    loop, and the law is exact only with a constant period); check :attr:`RecordedLaw.explained`
+    before using it."""
+    t, y, u = log.time, np.radians(log.position[joint]), log.pwm[joint]
+    if t.size < 10 or not t[-1] > t[0]:
+        raise RcmKinError(f"{log.path.name}: too few time-stamped samples to read a controller from")
+    rate = np.r_[0.0, np.diff(y)] / ((t[-1] - t[0]) / (t.size - 1))
     inside = np.abs(u) < limit - 1.0              # saturated samples tell nothing about the law
     A = np.column_stack([np.ones(inside.sum()), y[inside], rate[inside]])
     sign = np.sign(u[inside] - np.median(u[inside]))

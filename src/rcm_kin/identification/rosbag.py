@@ -7,8 +7,8 @@ PlotJuggler CSV columns are named after). The fields mean what the CSV columns m
 ``velocity`` the commanded PWM (counts), ``effort`` the position setpoint (deg). Time is
 ``header.stamp`` (the microcontroller's clock, s) unless every stamp is zero, then the recording
 time. A bag is a single ``.mcap``/``.db3`` file or a rosbag2 folder (``metadata.yaml`` beside
-its storage files). Messages missing a field of a joint are dropped, as the CSV reader drops
-incomplete rows.
+its storage files). Messages missing a field of a joint are left out with a warning, as the CSV
+reader leaves out cut-off rows; a non-finite value is an error naming the message, as in a CSV.
 
 The topic is :data:`DEFAULT_TOPIC` unless a caller sets another for a block of code with
 :func:`telemetry_topic` (the CLI's ``--topic``), so every function that reads logs through
@@ -17,6 +17,7 @@ The topic is :data:`DEFAULT_TOPIC` unless a caller sets another for a block of c
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -24,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import LogDataError, RcmKinError
 
 DEFAULT_TOPIC = "/psm_joint_telemetry"
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -103,7 +104,16 @@ def _columns(path: Path, rows: list[dict], stamps: list[str], received: list[int
     complete = [all(k in row for k in keys) for row in rows]
     if sum(complete) < 2:
         raise RcmKinError(f"{path}: not a telemetry log (fewer than 2 messages with every field of every joint)")
-    data = {k: np.array([row[k] for row, ok in zip(rows, complete) if ok]) for k in keys}
+    if not all(complete):
+        warnings.warn(f"{path}: {len(rows) - sum(complete)} messages missing a joint's field left out "
+                      f"(of {len(rows)})", stacklevel=2)
+    data = {k: np.array([row[k] for row, ok in zip(rows, complete) if ok], dtype=float) for k in keys}
+    for key, values in data.items():
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            raise LogDataError(f"{path}: {bad.size} messages with a non-finite {key[0]} {key[1]}, the first the "
+                               f"{bad[0] + 1}th complete one; clean the bag (messages are not dropped: the gap "
+                               "would be read as dynamics)")
     # the stamp as the decimal number of seconds it is (as the CSV export writes it)
     t = np.array([float(s) for s, ok in zip(stamps, complete) if ok])
     if not np.any(t):

@@ -42,8 +42,8 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
         calibration_logs(data)           # the measured logs are there before minutes of work
     out = output_folder(out)
     try:
-        return _write_sections(out, data, map_points, progress, workers or min(4, len(os.sched_getaffinity(0))))
-    except RcmKinError as exc:           # a folder with files but no index would look like a report
+        return _write_sections(out, data, map_points, progress, workers or min(4, _cores()))
+    except (RcmKinError, OSError) as exc:   # a folder with files but no index would look like a report
         (out / "index.html").write_text(f"<!doctype html><title>rcm-kin report: failed</title>"
                                         f"<p>The report was not completed: {html.escape(str(exc))}</p>\n")
         raise
@@ -98,6 +98,11 @@ def _write_sections(out: Path, data, map_points: int, progress: bool, workers: i
         bar.set_postfix_str("index.html")
         bar.update()
     return index
+
+
+def _cores() -> int:
+    """The cores this process may use (all of them where the OS cannot say)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 def _control_sections(out: Path, recording: Path | None) -> tuple:
