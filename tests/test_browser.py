@@ -93,3 +93,52 @@ def test_without_a_browser_the_renderer_says_what_to_install(tmp_path, capsys, m
     assert main(["view", "psm", "--png", str(tmp_path / "p.png"), "--renderer", "browser"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: no Chromium") and "apt-get install chromium" in err and err.count("\n") == 1
+
+
+FAKE_CHROMIUM = """#!/bin/sh
+# a stand-in for Chromium: logs like it, exits 0, and writes {writes} to the --screenshot path
+for a in "$@"; do case "$a" in --screenshot=*) out="${{a#--screenshot=}}";; esac; done
+echo '[12577:12610:1129/211500.123456:ERROR:bus.cc(407)] Failed to connect to the bus' >&2
+echo '[12577:12610:1129/211500.234567:ERROR:headless_shell.cc(215)] Failed to write file' >&2
+echo '[12577:12577:1129/211500.345678:WARNING:sandbox_linux.cc(430)] InitializeSandbox() called' >&2
+{write}
+exit 0
+"""
+WRITES = {"nothing": "", "text": 'echo "not a picture" > "$out"', "png": "printf '\\211PNG\\r\\n\\032\\nfake' > \"$out\""}
+
+
+def fake_chromium(folder, writes: str):
+    """A fake ``chromium`` in ``folder`` (put it alone on PATH)."""
+    script = folder / "chromium"
+    script.write_text(FAKE_CHROMIUM.format(writes=writes, write=WRITES[writes]))
+    script.chmod(0o755)
+
+
+@pytest.mark.parametrize("writes", ["nothing", "text"])
+def test_a_browser_that_writes_no_png_is_one_line_error_and_the_old_picture_stays(tmp_path, capsys, monkeypatch,
+                                                                                  writes):
+    """Chromium exits 0 even when it fails to write: with --force over an existing PNG the command
+    still fails (exit 2), on one line without Chromium's log prefix, and leaves the old file as it was."""
+    bin_folder = tmp_path / "bin"
+    bin_folder.mkdir()
+    fake_chromium(bin_folder, writes)
+    monkeypatch.setenv("PATH", str(bin_folder))
+    old = tmp_path / "p.png"
+    old.write_bytes(b"the old picture")
+    assert main(["view", "psm", "--png", str(old), "--renderer", "browser", "--force"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ")
+    assert err.rstrip().endswith("could not render view.html (no PNG written): Failed to write file")
+    assert old.read_bytes() == b"the old picture"
+
+
+def test_a_png_from_the_browser_is_moved_into_place(tmp_path, capsys, monkeypatch):
+    bin_folder = tmp_path / "bin"
+    bin_folder.mkdir()
+    fake_chromium(bin_folder, "png")
+    monkeypatch.setenv("PATH", str(bin_folder))
+    png = tmp_path / "p.png"
+    png.write_bytes(b"the old picture")
+    assert main(["view", "psm", "--png", str(png), "--renderer", "browser", "--force"]) == 0
+    assert png.read_bytes() == b"\x89PNG\r\n\x1a\nfake"
+    assert capsys.readouterr().out.strip() == f"wrote {png}"

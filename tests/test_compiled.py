@@ -66,12 +66,40 @@ def test_built_once_then_loaded_from_the_cache(cache, model):
     assert [p for p in cache.iterdir() if p.is_dir()] == []   # no build folder left behind
 
 
-def test_key_follows_the_function_and_the_compiler(model):
+def test_key_follows_the_function_the_compiler_and_the_machine(model, monkeypatch):
     command = ["cc"]
     key = comp.function_key(model.gravity, command)
     assert key == comp.function_key(model.gravity, command)
     assert key != comp.function_key(model.bias, command)
     assert key != comp.function_key(model.gravity, ["gcc"])
+    monkeypatch.setattr(comp.platform, "machine", lambda: "some-other-cpu")
+    assert key != comp.function_key(model.gravity, command)
+    monkeypatch.undo()
+    monkeypatch.setattr(comp.platform, "system", lambda: "SomeOtherOS")
+    assert key != comp.function_key(model.gravity, command)
+
+
+@needs_compiler
+def test_a_truncated_cached_library_is_built_anew(cache, model):
+    """A cached library cut short (a full disk, a killed copy) is deleted and rebuilt on the next
+    call, which then gives the interpreted function's values (1e-12)."""
+    library = comp.compiled_library(model.gravity)        # built, not loaded in this process
+    library.write_bytes(library.read_bytes()[:64])       # "file too short"
+    g = comp.compiled(model.gravity)
+    assert g.class_name() != model.gravity.class_name()  # the library, not the interpreted fallback
+    assert library.stat().st_size > 64 and list(cache.glob("*.so")) == [library]
+    for q in np.random.default_rng(3).uniform(model.lower, model.upper, (10, 3)):
+        np.testing.assert_allclose(np.array(g(q)), np.array(model.gravity(q)), rtol=1e-12, atol=1e-12)
+
+
+def test_a_library_that_never_loads_is_an_error(cache, model, monkeypatch, tmp_path):
+    """A compiler whose output never loads (here: writes a text file): rebuilt once, then one clear error."""
+    fake = tmp_path / "fake-cc"
+    fake.write_text('#!/bin/sh\nwhile [ "$1" != "-o" ]; do shift; done\necho not a library > "$2"\n')
+    fake.chmod(0o755)
+    monkeypatch.setenv("CC", str(fake))
+    with pytest.raises(RcmKinError, match=r"the compiled gravity does not load, even built anew: .*\.so"):
+        comp.compiled(model.gravity)
 
 
 def test_cache_folder_respects_xdg(monkeypatch, tmp_path):

@@ -91,6 +91,29 @@ def test_compiled_loop_equals_the_reference_tick_for_tick(plants, experiment, no
 
 
 @needs_compiler
+def test_the_insertion_gain_is_an_argument_not_frozen_in_the_cached_kernel(plants, monkeypatch):
+    """``hardware.INSERTION_KP`` changed after the kernel was compiled (and cached on disk): the
+    compiled loop follows it as the reference does (a constant frozen into numba's machine code
+    would not)."""
+    from rcm_kin.simulation import controllers
+    from rcm_kin.simulation.controllers import PController
+
+    step, initial, fast_plant, _ = plants
+    ref = step_reference(0.3, T, at=0.1)
+    shipped = simulate_compiled(fast_plant, loop_law(PController()), "p", ref, settle=0.05)
+    halved = 0.5 * compiled_loop.INSERTION_KP
+    for module in (compiled_loop, controllers):
+        monkeypatch.setattr(module, "INSERTION_KP", halved)
+    slow = simulate(step, PController(), ref, settle=0.05, initial=initial)
+    fast = simulate_compiled(fast_plant, loop_law(PController()), "p", ref, settle=0.05)
+    np.testing.assert_allclose(fast.command, slow.command, rtol=0, atol=1e-9)
+    # the P law with the halved gain, on the logged reference and reading (counts/m * m)
+    np.testing.assert_allclose(fast.command[:, 2], halved * (fast.reference[:, 2] - fast.measured[:, 2]),
+                               rtol=1e-12, atol=1e-9)
+    assert np.abs(fast.command[:, 2] - shipped.command[:, 2]).max() > 10    # and it acted (counts)
+
+
+@needs_compiler
 def test_divergence_is_an_error_at_the_same_tick():
     """A plant that blows up (x -> 1e200 x + 1 per period): both loops stop with the same message."""
     import casadi as ca

@@ -7,8 +7,10 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socketserver
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -382,6 +384,112 @@ def test_cli_errors_are_one_line(capsys):
     assert capsys.readouterr().err.startswith("error: the statistics start within the run")
     assert main(ARGS + ["--scheduler", "tcp://127.0.0.1:1", "--workers", "2"]) == 2
     assert capsys.readouterr().err.startswith("error: --workers sizes the embedded cluster")
+
+
+class _Answers(socketserver.BaseRequestHandler):
+    """A service that is not Dask's: reads what comes and answers with an HTTP error."""
+
+    def handle(self):
+        self.request.recv(4096)
+        self.request.sendall(b"HTTP/1.0 400 Bad Request\r\nContent-Length: 0\r\n\r\n")
+
+
+class _Silent(socketserver.BaseRequestHandler):
+    """A service that accepts and never answers (as `python -m http.server` does Dask's bytes)."""
+
+    def handle(self):
+        self.request.recv(4096)
+        time.sleep(3)
+
+
+@pytest.fixture
+def tcp_server(request):
+    """A throwaway TCP server on 127.0.0.1 (handler: the test's parameter); its tcp:// address."""
+    server = socketserver.ThreadingTCPServer(("127.0.0.1", 0), request.param)
+    server.daemon_threads = True
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield f"tcp://127.0.0.1:{server.server_address[1]}"
+    server.shutdown()
+    server.server_close()
+
+
+@pytest.mark.parametrize("tcp_server", [_Answers], indirect=True)
+def test_a_service_that_is_not_a_scheduler_is_a_one_line_error(tcp_server, capsys):
+    assert main(ARGS + ["--scheduler", tcp_server]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: cannot reach a Dask scheduler at {tcp_server}: ") and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("tcp_server", [_Silent], indirect=True)
+def test_a_service_that_never_answers_is_refused_in_bounded_time(tcp_server):
+    from rcm_kin.robustness.execution import check_scheduler
+
+    with pytest.raises(RcmKinError, match=r"cannot reach a Dask scheduler at .*: no Dask handshake within 0.5 s"):
+        check_scheduler(tcp_server, seconds=0.5)
+
+
+def test_work_is_checked_before_any_cluster_starts(monkeypatch, capsys, tmp_path):
+    from rcm_kin.robustness import execution
+    from rcm_kin.simulation.references import MAX_SAMPLES
+
+    def no_cluster(*args, **kwargs):
+        raise AssertionError("a cluster was started")
+
+    monkeypatch.setattr(execution, "dask_client", no_cluster)
+    one = ["robustness", "psm", "--controller", "p", "--experiment", "sine"]
+    # the simulator's own limit on one run: 10000 s at 400 Hz
+    assert main(one + ["--samples", "1", "--duration", "10000"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: 10000 s at 400 Hz is 4,000,001 controller periods; the limit is "
+                          f"{MAX_SAMPLES:,}") and err.count("\n") == 1
+    # the total: 10^6 samples x 1 controller x (6 s x 400 Hz + 1) periods of the default sinusoid
+    assert main(one + ["--samples", "1000000"]) == 2
+    assert capsys.readouterr().err.startswith("error: 1,000,000 samples x 1 controllers x 2,401 periods is "
+                                              "2,401,000,000 controller periods to simulate")
+    out = ["--out", str(tmp_path)]
+    assert main(["sweep", "psm", "weights", "--duration", "600"] + out) == 2
+    assert capsys.readouterr().err.startswith("error: 600 s at 400 Hz is 240,001 controller periods")
+    masses = [str(m) for m in range(1, 31)]
+    assert main(["sweep", "psm", "counterweights", "--main-mass", *masses, "--dpm-mass", *masses[:10],
+                 "--points", "201"] + out) == 2
+    assert capsys.readouterr().err.startswith("error: 30 x 10 masses x 201^2 points is 12,120,300 poses")
+
+
+def test_an_error_on_a_worker_is_not_retried_and_leaves_stderr_quiet(capfd, tmp_path):
+    from rcm_kin.robustness.execution import dask_client, map_batches
+
+    calls = tmp_path / "calls"
+
+    def refuse(batch):          # pickled by value: a local function
+        with open(calls, "a") as f:
+            f.write("call\n")
+        raise RcmKinError("refused on the worker")
+
+    with dask_client(workers=1) as client:
+        capfd.readouterr()
+        with pytest.raises(RcmKinError, match="refused on the worker"):
+            map_batches(client, refuse, [[1]], progress=False)
+        err = capfd.readouterr().err
+    assert calls.read_text() == "call\n"
+    assert err == ""
+
+
+def test_a_run_that_diverges_or_leaves_the_joint_range_is_unstable(params):
+    from rcm_kin.simulation.controllers import make_controller
+    from rcm_kin.simulation.experiments import SmoothPlant, experiment_reference, psm_plant_and_schedule
+    from rcm_kin.simulation.firmware import FirmwareSettings
+    from rcm_kin.robustness.task import closed_loop_run
+
+    settings = FirmwareSettings()
+    _, schedule = psm_plant_and_schedule(params, settings.period)
+    reference = experiment_reference("sine", settings.period, DURATION)
+    run = lambda step: closed_loop_run(SmoothPlant(step), make_controller("p", schedule), reference, settings)  # noqa: E731
+    held = run(lambda x, u: x)                                              # stays at the first pose
+    assert held is not None and np.array_equal(held.position[:, :2], np.degrees(np.tile(reference.position[0, :2],
+                                                                                         (reference.time.size, 1))))
+    assert run(lambda x, u: x + np.r_[0.01, 0, 0, 0, 0, 0]) is None          # finite, drifts out of the roll range
+    assert run(lambda x, u: x * np.nan) is None                             # diverged
 
 
 # --- design sweeps ----------------------------------------------------------------------------------

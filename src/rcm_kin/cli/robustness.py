@@ -3,9 +3,8 @@ run on Dask: an embedded local cluster, or ``--scheduler tcp://HOST:PORT``."""
 
 from __future__ import annotations
 
-import sys
-
-from rcm_kin.cli.common import RAW, add_json, add_params, count, emit, finite, path_text, psm_robot, require_psm
+from rcm_kin.cli.common import (RAW, add_json, add_params, count, emit, finite, path_text, progress_wanted,
+                               psm_robot, require_psm)
 from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.simulation.controllers import CONTROLLERS
 
@@ -63,6 +62,7 @@ def cmd_robustness(args) -> None:
     from rcm_kin.robustness.execution import dask_client, run_robustness
     from rcm_kin.robustness.sampling import read_standard_errors, uncertain_parameters
     from rcm_kin.robustness.task import Study
+    from rcm_kin.robustness.work import check_robustness
 
     require_psm(args, "the robustness runs simulate the PSM's driven joints, not '{robot}'")
     if args.workers is not None and args.scheduler:
@@ -71,16 +71,17 @@ def cmd_robustness(args) -> None:
     errors = read_standard_errors(args.uncertainty) if args.uncertainty else None
     study = Study(params, uncertain_parameters(params, errors), tuple(dict.fromkeys(args.controller)),
                   args.experiment, args.duration, args.skip)
+    check_robustness(study.experiment, study.duration, len(study.controllers), args.samples)
     out = output_folder(args.out) if args.out else None
     with dask_client(args.scheduler, args.workers) as client:
-        result = run_robustness(study, args.samples, args.seed, client, args.batch_size, progress=sys.stderr.isatty())
+        result = run_robustness(study, args.samples, args.seed, client, args.batch_size, progress=progress_wanted(args))
     lines = [f"{args.experiment}: {result.samples} samples (seed {args.seed}); max error deg p5/median/p95/worst"]
     for name, c in result.controllers.items():
         cells = [f"{axis} " + "/".join(f"{v:.2f}" for v in vars(a.max_error_deg).values())
                  for axis, a in c.axes.items()]
         radius = (f"400 Hz radius median {c.firmware_spectral_radius.median:.4f} worst "
                   f"{c.firmware_spectral_radius.worst:.4f}" if c.has_margin else "no linear margin")
-        lines.append(f"  {name:20} {'  '.join(cells)}  diverged {c.unstable_fraction:.0%}  {radius}")
+        lines.append(f"  {name:20} {'  '.join(cells)}  unstable {c.unstable_fraction:.0%}  {radius}")
     if out:
         from rcm_kin.robustness.figures import robustness_figure
 
@@ -122,19 +123,22 @@ def cmd_sweep(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.robustness import figures, sweeps
     from rcm_kin.robustness.execution import dask_client, map_batches
+    from rcm_kin.robustness.work import check_counterweight_sweep, check_weights_sweep
 
     require_psm(args, "the design sweeps are of the PSM, not '{robot}'")
     params = load_drive_parameters(args.params)
     if args.design == "counterweights":
+        check_counterweight_sweep(len(args.main_mass), len(args.dpm_mass), args.points)
         points, task, shared = list(product(args.main_mass, args.dpm_mass)), sweeps.counterweight_batch, \
             {"params": params, "points": args.points}
     else:
+        check_weights_sweep(len(args.error_deg), len(args.pwm_fraction), args.duration)
         points, task, shared = list(product(args.error_deg, args.pwm_fraction)), sweeps.weights_batch, \
             {"params": params, "duration": args.duration}
     out = output_folder(args.out)
     with dask_client(args.scheduler, args.workers) as client:
         batches = [[point] for point in points]
-        rows = [row for batch in map_batches(client, task, batches, sys.stderr.isatty(), f"sweep {args.design}",
+        rows = [row for batch in map_batches(client, task, batches, progress_wanted(args), f"sweep {args.design}",
                                              **shared) for row in batch]
     table = sweeps.write_table(rows, out / f"sweep_{args.design}.csv")
     draw = figures.counterweight_figure if args.design == "counterweights" else figures.weights_figure

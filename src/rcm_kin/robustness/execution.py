@@ -11,12 +11,14 @@ Results do not depend on the cluster: each sample draws from its own seed
 (:func:`rcm_kin.robustness.sampling.sample_seeds`), batches are gathered in order, and a batch
 is a pure function of its arguments. A worker lost mid-run costs only time: the scheduler
 re-runs its batches elsewhere (up to ``distributed.scheduler.allowed-failures`` losses per
-batch), and a batch that raised on a worker is retried ``RETRIES`` times before the error
-reaches the client.
+batch). A batch that raised is not retried: a batch is deterministic, so its error (an
+:class:`~rcm_kin.errors.RcmKinError` for a user error) reaches the client at once. What can be
+checked before a cluster starts is checked by the callers (:mod:`rcm_kin.robustness.work`).
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
 import math
 import os
@@ -30,9 +32,9 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.robustness.sampling import sample_seeds
 from rcm_kin.robustness.statistics import Robustness, summarise
 from rcm_kin.robustness.task import Study, run_batch
+from rcm_kin.robustness.work import check_robustness
 
-RETRIES = 2                 # re-runs of a batch that raised on a worker
-CONNECT_TIMEOUT = "10s"     # to reach an existing scheduler
+CONNECT_SECONDS = 10.0      # to reach an existing scheduler and hear it answer
 BATCHES_PER_WORKER = 4      # default batch size: about this many batches per worker, for balance
 
 
@@ -52,16 +54,49 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
         n = workers or machine_workers()
         if n < 1:
             raise RcmKinError(f"the local cluster needs at least 1 worker, got {n}")
+        # silence_logs: the workers' "Compute Failed" reports would precede the one-line error
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                          silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+                          silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
             yield client
         return
+    check_scheduler(scheduler)
     try:
-        client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+        client = Client(scheduler, timeout=f"{CONNECT_SECONDS}s")
     except (OSError, TimeoutError, ValueError) as exc:
-        raise RcmKinError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        raise RcmKinError(f"cannot reach a Dask scheduler at {scheduler}: {exc}") from None
     with client:
         yield client
+
+
+def check_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
+    """Refuse ``address`` unless a Dask scheduler answers there within ``seconds``: connected, the
+    comm handshake done and its ``identity`` a scheduler's. (``distributed.Client`` waits for the
+    handshake without a timeout, and takes any bytes for a frame length.)"""
+    from distributed.comm import connect
+    from distributed.security import Security
+
+    async def identity():
+        comm = await connect(address, timeout=seconds, **Security().get_connection_args("client"))
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        answer = asyncio.run(asyncio.wait_for(identity(), seconds))
+    except (TimeoutError, asyncio.TimeoutError):
+        what = f"no Dask handshake within {seconds:g} s"
+    except (OSError, ValueError) as exc:
+        what = str(exc) or type(exc).__name__
+    except Exception as exc:        # whatever bytes a service that is not Dask's sent back
+        what = f"the service there does not speak Dask's protocol ({type(exc).__name__} reading its answer)"
+    else:
+        kind = answer.get("type") if isinstance(answer, dict) else None
+        if kind == "Scheduler":
+            return
+        what = f"the service there is {'a Dask ' + kind if kind else 'not a Dask scheduler'}"
+    raise RcmKinError(f"cannot reach a Dask scheduler at {address}: {what}")
 
 
 def batches_of(items: Sequence, batch_size: int) -> list[list]:
@@ -83,7 +118,7 @@ def map_batches(client, function: Callable, batches: list, progress: bool = True
     finishes (done = how many have)."""
     from distributed import as_completed
 
-    futures = client.map(function, batches, pure=False, retries=RETRIES, **shared)
+    futures = client.map(function, batches, pure=False, **shared)
     with tqdm(total=len(futures), desc=desc, unit="batch", file=sys.stderr, disable=not progress) as bar:
         for done, _ in enumerate(as_completed(futures), start=1):
             bar.update()
@@ -99,7 +134,9 @@ def _batch(batch, study: Study):
 def run_robustness(study: Study, samples: int, seed: int = 0, client=None, batch_size: int | None = None,
                    progress: bool = True, on_batch: Callable[[int], None] | None = None) -> Robustness:
     """``samples`` samples of ``study`` on ``client``'s cluster (default: an embedded local
-    cluster), seeded by ``seed``; the same result whatever the cluster and the batch size."""
+    cluster), seeded by ``seed``; the same result whatever the cluster and the batch size. The
+    work is checked first (:func:`rcm_kin.robustness.work.check_robustness`)."""
+    check_robustness(study.experiment, study.duration, len(study.controllers), samples)
     seeds = list(enumerate(sample_seeds(seed, samples)))
     if client is None:
         with dask_client() as own:

@@ -14,7 +14,7 @@ from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter  # n
 
 import numpy as np  # noqa: E402
 
-from rcm_kin.errors import RcmKinError  # noqa: E402
+from rcm_kin.report.figures import _save as save  # noqa: E402  (PNG at 110 dpi, figure freed)
 from rcm_kin.robustness.statistics import Robustness  # noqa: E402
 
 
@@ -22,17 +22,6 @@ def ecdf(values) -> tuple[np.ndarray, np.ndarray]:
     """The finite ``values`` sorted and their empirical cumulative probabilities ``k / n``."""
     v = np.sort(np.asarray(values, dtype=float)[np.isfinite(values)])
     return v, np.arange(1, v.size + 1) / max(v.size, 1)
-
-
-def save(fig, path: Path) -> Path:
-    """Write ``fig`` as a PNG (110 dpi) and free it."""
-    try:
-        fig.savefig(path, dpi=110)
-    except (OSError, ValueError) as exc:
-        raise RcmKinError(f"cannot write the figure {path}: {exc}") from None
-    finally:
-        plt.close(fig)
-    return path
 
 
 def robustness_figure(result: Robustness, path: str | Path) -> Path:

@@ -2,11 +2,12 @@
 
 Percentiles are NumPy's default (linear interpolation between order statistics); ``worst`` is
 the largest value, but for the damping ratio, where it is the smallest. Error statistics are taken over the
-samples whose run did not diverge (a diverged run has no error to speak of: it counts in
+samples whose run was stable (an unstable run has no error to speak of: it counts in
 ``unstable_fraction``); a figure no sample has is NaN (``null`` in JSON).
 
 A sample is *unstable* for a controller when its simulated run (the nonlinear plant with the
-friction that sticks, PWM saturated) diverged. The linear verdicts are reported beside it, on the
+friction that sticks, PWM saturated) diverged (its state left the finite numbers) or left the
+joints' range (:func:`rcm_kin.robustness.task.closed_loop_run`). The linear verdicts are reported beside it, on the
 roll and pitch modes (:func:`rcm_kin.robustness.task.loop_margins`): the 400 Hz firmware loop
 linearised about some pose of the stability grid with a pole on or outside
 the unit circle (spectral radius >= 1; sampling and filter lags included), and the continuous
@@ -64,7 +65,7 @@ class AxisRobustness:
 @dataclass(frozen=True)
 class ControllerRobustness:
     axes: dict[str, AxisRobustness]        # roll, pitch
-    unstable_fraction: float               # the simulated run diverged (module notes)
+    unstable_fraction: float               # the simulated run diverged or left the joint range (module notes)
     continuous_max_real: Spread            # 1/s, largest real part of the continuous loop over the grid
     firmware_spectral_radius: Spread       # largest |z| of the 400 Hz loop's roll/pitch modes over the grid
     firmware_min_damping: Spread           # least damping ratio of those modes over the grid
@@ -109,14 +110,14 @@ def controller_robustness(outcomes: list[SampleOutcome], c: int) -> ControllerRo
     max_error = np.array([o.max_error_deg[c] for o in outcomes])
     mean_error = np.array([o.mean_error_deg[c] for o in outcomes])
     saturated = np.array([o.saturated[c] for o in outcomes])
-    diverged = np.array([o.diverged[c] for o in outcomes])
+    unstable = np.array([o.unstable[c] for o in outcomes])
     max_real = np.array([o.max_real[c] for o in outcomes])
     radius = np.array([o.spectral_radius[c] for o in outcomes])
     damping = np.array([o.min_damping[c] for o in outcomes])
     axes = {axis: AxisRobustness(spread(max_error[:, a]), spread(mean_error[:, a]), float(saturated[:, a].mean()))
             for a, axis in enumerate(AXES)}
     has_margin = bool(np.all(np.isfinite(radius)))
-    return ControllerRobustness(axes, float(diverged.mean()), spread(max_real), spread(radius),
+    return ControllerRobustness(axes, float(unstable.mean()), spread(max_real), spread(radius),
                                 spread(damping, worst=np.min),
                                 float(np.mean(max_real >= 0)) if has_margin else np.nan,
                                 float(np.mean(radius >= 1)) if has_margin else np.nan, has_margin)

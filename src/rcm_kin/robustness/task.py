@@ -5,7 +5,9 @@ parameter set (:func:`rcm_kin.simulation.experiments.psm_plant_and_schedule`), a
 (the robot the schedule meets) takes the drawn parameters. Per sample and controller:
 
 - the closed-loop experiment (:func:`rcm_kin.simulation.loop.simulate`, 400 Hz firmware) and its
-  tracking metrics; a run whose state leaves the finite numbers is *diverged*;
+  tracking metrics; a run is *unstable* (:func:`closed_loop_run`) when its state leaves the
+  finite numbers (diverged) or its joints leave their range
+  (:func:`rcm_kin.simulation.experiments.check_in_limits`, where the model means nothing);
 - the linear stability of the roll and pitch about every pose of a ``survey_points`` x
   ``survey_points`` grid over the schedule's span (:func:`loop_margins`, on the drawn set's smooth
   model, Coulomb friction left out as the design does; the insertion's own modes left out):
@@ -34,14 +36,15 @@ from rcm_kin.control.stability import damping_ratios, firmware_loop_matrix
 from rcm_kin.control.thesis_reference import K_PITCH, K_ROLL
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS
 from rcm_kin.robot import load_robot
 from rcm_kin.robustness.sampling import Uncertain, draw, with_values
 from rcm_kin.simulation.controllers import CONTROLLERS, make_controller
-from rcm_kin.simulation.experiments import SmoothPlant, experiment_reference, psm_plant_and_schedule
+from rcm_kin.simulation.experiments import (SmoothPlant, check_in_limits, experiment_reference,
+                                            psm_plant_and_schedule)
 from rcm_kin.simulation.firmware import FirmwareSettings
-from rcm_kin.simulation.loop import AXES, simulate, tracking_metrics
+from rcm_kin.simulation.loop import AXES, SimulationResult, simulate, tracking_metrics
 from rcm_kin.simulation.plant import drive_train_plant, period_map
 
 SURVEY_POINTS = 5       # per axis of the stability grid
@@ -75,14 +78,14 @@ class Study:
 @dataclass(frozen=True)
 class SampleOutcome:
     """One sample: the drawn values and, per controller (the study's order) and axis (roll, pitch),
-    what the closed loop did. Errors in degrees (NaN where the run diverged)."""
+    what the closed loop did. Errors in degrees (NaN where the run was unstable)."""
 
     index: int
     values: np.ndarray            # (n_uncertain,) the drawn parameters, the study's order
     max_error_deg: np.ndarray     # (n_controllers, 2) largest |reference - measured|
     mean_error_deg: np.ndarray    # (n_controllers, 2) mean |reference - measured|
     saturated: np.ndarray         # (n_controllers, 2) bool: the command reached the PWM limit
-    diverged: np.ndarray          # (n_controllers,) bool
+    unstable: np.ndarray          # (n_controllers,) bool: the run diverged or left the joint range
     max_real: np.ndarray          # (n_controllers,) 1/s, continuous loop, worst pose (NaN: no linear law)
     spectral_radius: np.ndarray   # (n_controllers,) 400 Hz firmware loop, worst pose (NaN: no linear law)
     min_damping: np.ndarray       # (n_controllers,) least damping ratio of the 400 Hz loop's poles, worst pose
@@ -162,6 +165,31 @@ def sample_plant(params: DriveParameters, period: float):
     return SmoothPlant(lambda x, u: np.array(smooth(x, u)).ravel())
 
 
+class Diverged(Exception):
+    """The plant's state left the finite numbers (raised out of :func:`simulate` by the step)."""
+
+
+def finite_steps(step):
+    """``step(x, u) -> x`` that raises :class:`Diverged` on a state with a NaN or an infinity."""
+    def checked(x, u):
+        x = step(x, u)
+        if not np.all(np.isfinite(x)):
+            raise Diverged
+        return x
+    return checked
+
+
+def closed_loop_run(plant, controller, reference, settings: FirmwareSettings) -> SimulationResult | None:
+    """``controller`` on ``plant`` (``step``, ``initial``) along ``reference``; None when the run is
+    unstable: its state diverged (left the finite numbers) or its joints left their range."""
+    try:
+        result = simulate(finite_steps(plant.step), controller, reference, settings, initial=plant.initial)
+        check_in_limits(result)
+    except (Diverged, JointLimitError):
+        return None
+    return result
+
+
 def run_sample(study: Study, index: int, seed: np.random.SeedSequence) -> SampleOutcome:
     """Sample ``index`` of ``study``, drawn from ``seed`` alone."""
     settings = FirmwareSettings()
@@ -173,15 +201,12 @@ def run_sample(study: Study, index: int, seed: np.random.SeedSequence) -> Sample
     model = driven_dynamics(load_robot("psm"), params, coulomb=False)
     n = len(study.controllers)
     max_error, mean_error = np.full((n, 2), np.nan), np.full((n, 2), np.nan)
-    saturated, diverged = np.zeros((n, 2), dtype=bool), np.zeros(n, dtype=bool)
+    saturated, unstable = np.zeros((n, 2), dtype=bool), np.zeros(n, dtype=bool)
     max_real, radius, damping = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
     for c, name in enumerate(study.controllers):
-        try:
-            result = simulate(plant.step, make_controller(name, schedule), reference, settings, initial=plant.initial)
-        except RcmKinError as exc:
-            if "diverged" not in str(exc):
-                raise
-            diverged[c] = True
+        result = closed_loop_run(plant, make_controller(name, schedule), reference, settings)
+        if result is None:
+            unstable[c] = True
         else:
             metrics = tracking_metrics(result, study.skip)
             for a, axis in enumerate(AXES):
@@ -191,7 +216,7 @@ def run_sample(study: Study, index: int, seed: np.random.SeedSequence) -> Sample
         law = linear_law(name, schedule)
         if law is not None:
             max_real[c], radius[c], damping[c] = loop_margins(model, schedule, law, study.survey_points)
-    return SampleOutcome(index, values, max_error, mean_error, saturated, diverged, max_real, radius, damping)
+    return SampleOutcome(index, values, max_error, mean_error, saturated, unstable, max_real, radius, damping)
 
 
 def run_batch(study: Study, batch: list[tuple[int, np.random.SeedSequence]]) -> list[SampleOutcome]:

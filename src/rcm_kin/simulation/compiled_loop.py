@@ -8,7 +8,7 @@ kernel repeats their arithmetic operation for operation, and ``tests/test_compil
 holds it to them tick for tick.
 
 - Plants (:class:`CompiledPlant`): the CasADi functions compiled to C
-  (:func:`rcm_kin.symbolic.compiled.compiled_library`) and called from the kernel through their
+  (:func:`rcm_kin.symbolic.compiled.loaded_library`) and called from the kernel through their
   C entry point (CasADi's ``f(arg, res, iw, w, mem)``) by address: the same expression graphs,
   no table. The drive-train plant evaluates its mass matrix and bias forces once per period and
   advances the stick-slip axes with the plant's own numba kernel
@@ -26,7 +26,9 @@ Where the model functions cannot be compiled (no C compiler, unwritable cache),
 
 numba's on-disk cache keys a function on its own file only; the kernel below inlines the
 stick-slip kernels, so it is built in a closure over a hash of ``stick_slip.py`` (numba keys
-cached closures on their cell contents): a changed drive-train model compiles anew.
+cached closures on their cell contents): a changed drive-train model compiles anew. Constants of
+other modules (``hardware.INSERTION_KP``, ``loop.FIRMWARE_SCALE``) are kernel arguments, never
+frozen into the cached machine code.
 """
 
 from __future__ import annotations
@@ -58,7 +60,7 @@ from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import FIRMWARE_SCALE, SimulationResult, check_run, firmware_units
 from rcm_kin.simulation.plant import DriveTrainPlant
 from rcm_kin.simulation.references import Reference
-from rcm_kin.symbolic.compiled import compiled_library
+from rcm_kin.symbolic.compiled import loaded_library
 
 P, PID, STATE_FEEDBACK, THESIS = 0, 1, 2, 3        # LoopLaw.kind
 DRIVE_TRAIN, SMOOTH = 0, 1                         # CompiledPlant.kind
@@ -78,7 +80,7 @@ class CFunction:
 
 
 def c_function(fn: ca.Function) -> CFunction | None:
-    """``fn``'s C entry point (compiled and cached by :func:`compiled_library`), or None when it
+    """``fn``'s C entry point (compiled, cached and loaded by :func:`loaded_library`), or None when it
     cannot be compiled. Raises :class:`RcmKinError` for sparse inputs or outputs."""
     for i in range(fn.n_in()):
         if not fn.sparsity_in(i).is_dense():
@@ -86,10 +88,10 @@ def c_function(fn: ca.Function) -> CFunction | None:
     for i in range(fn.n_out()):
         if not fn.sparsity_out(i).is_dense():
             raise RcmKinError(f"{fn.name()}: the compiled loop needs dense outputs")
-    path = compiled_library(fn)
-    if path is None:
+    found = loaded_library(fn)
+    if found is None:
         return None
-    library = ctypes.CDLL(str(path))
+    path, library = found
     int_size = getattr(library, f"{fn.name()}_casadi_int_size")
     if int_size() != ctypes.sizeof(ctypes.c_longlong):
         raise RcmKinError(f"{fn.name()}: CasADi's integer type is not 64 bits in {path}")
@@ -287,9 +289,9 @@ def _conditional_integral(integral, error, period, limit, pid, with_feedforward,
 
 @numba.njit(cache=True)
 def _command(kind, flags, gains, roll_grid, pitch_grid, table, hold_table, friction, memory, measured, velocity,
-             reference, rdot, racc, period, limit, scratch, command):
+             reference, rdot, racc, period, limit, insertion_kp, scratch, command):
     """The controller's ``command`` (firmware units, before saturation) into ``command``; ``memory``
-    updated in place."""
+    updated in place; the insertion by its P loop (``insertion_kp`` counts/m)."""
     e0, e1 = reference[0] - measured[0], reference[1] - measured[1]
     if kind == P:
         command[0] = -gains[0] * e0
@@ -326,7 +328,7 @@ def _command(kind, flags, gains, roll_grid, pitch_grid, table, hold_table, frict
             feedforward = k[5] * rdot[1] + k[6] * racc[1] + hold[1]
             command[1], memory[0] = _conditional_integral(memory[0], e1, period, limit[1], False, True,
                                                           k[2] * e1, k[3] * v1, k[4], feedforward)
-    command[2] = INSERTION_KP * (reference[2] - measured[2])
+    command[2] = insertion_kp * (reference[2] - measured[2])
 
 
 @numba.njit(cache=True)
@@ -410,12 +412,13 @@ def _keyed_loops(physics: str):
 
     @numba.njit(cache=True)
     def run(first, stop, x, previous, filtered, memory, ref_fw, vel_fw, acc_fw, noise, period, limit, count,
-            roll_filter, quantise, kind, flags, gains, roll_grid, pitch_grid, table, hold_table, friction_ff,
-            plant_kind, addresses, work, friction, input_gain, damping, reflected_inertia, substeps,
-            log_measured, log_position, log_command, log_pwm):
+            roll_filter, quantise, scale, insertion_kp, kind, flags, gains, roll_grid, pitch_grid, table,
+            hold_table, friction_ff, plant_kind, addresses, work, friction, input_gain, damping, reflected_inertia,
+            substeps, log_measured, log_position, log_command, log_pwm):
         """Ticks ``first .. stop - 1`` of ``loop.simulate`` (k < 0: settling); the loop's state
-        (x, previous, filtered, memory) advanced in place, the ticks k >= 0 logged. Returns the
-        tick where the state stopped being finite, or ``stop`` (ran through)."""
+        (x, previous, filtered, memory) advanced in place, the ticks k >= 0 logged; ``scale`` (3,):
+        joint units to firmware units (``loop.FIRMWARE_SCALE``), ``insertion_kp``: the insertion's
+        P gain (counts/m). Returns the tick where the state stopped being finite, or ``stop``."""
         if len(physics) == 0:
             return first
         buffers, arg, res, iw, w, axis = _work_buffers(work)
@@ -426,7 +429,7 @@ def _keyed_loops(physics: str):
             i = max(k, 0)
             moving = k >= 0
             for j in range(3):
-                true[j] = x[j] * FIRMWARE_SCALE[j]
+                true[j] = x[j] * scale[j]
             read_encoders(true, count, noise[k + n_settle + 1], measured)
             raw0 = (measured[0] - previous[0]) / period
             filtered[0] = roll_filter * filtered[0] + (1 - roll_filter) * raw0
@@ -436,7 +439,7 @@ def _keyed_loops(physics: str):
                 rdot[j] = vel_fw[i, j] if moving else 0.0
                 racc[j] = acc_fw[i, j] if moving else 0.0
             _command(kind, flags, gains, roll_grid, pitch_grid, table, hold_table, friction_ff, memory, measured,
-                     filtered, ref_fw[i], rdot, racc, period, limit, scratch, command)
+                     filtered, ref_fw[i], rdot, racc, period, limit, insertion_kp, scratch, command)
             for j in range(3):
                 u[j] = min(max(command[j], -limit[j]), limit[j])
                 if quantise:
@@ -488,7 +491,8 @@ def simulate_compiled(plant: CompiledPlant, law: LoopLaw, name: str, reference: 
         for first in range(-n_settle, n, CHUNK):
             stop = min(first + CHUNK, n)
             end = _run(first, stop, x, previous, filtered, memory, ref_fw, vel_fw, acc_fw, noise, settings.period,
-                       limit, count, settings.roll_filter, settings.quantise_pwm, law.kind, law.flags, law.gains,
+                       limit, count, settings.roll_filter, settings.quantise_pwm, FIRMWARE_SCALE, INSERTION_KP,
+                       law.kind, law.flags, law.gains,
                        law.roll_deg, law.pitch_deg, law.table, law.hold, law.friction,
                        *plant.kernel_arguments()[:-2], plant.substeps, *logs)   # the period given above
             if end != stop:

@@ -3,8 +3,11 @@
 :func:`compiled` generates C for a CasADi function (``Function.generate``), builds a shared
 library with the C compiler ``$CC`` (default ``cc``) and loads it with ``casadi.external``. The
 library is cached under ``$XDG_CACHE_HOME/rcm-kin/casadi`` (default ``~/.cache/rcm-kin/casadi``),
-named by a SHA-256 of the function's serialisation, the CasADi version and the compile command,
-so a changed model, CasADi or compiler builds anew and an unchanged one loads in milliseconds.
+named by a SHA-256 of the function's serialisation, the CasADi version, the compile command and
+the machine (operating system and processor: a home folder shared by machines shares no binaries),
+so a changed model, CasADi or compiler builds anew and an unchanged one loads in milliseconds. A
+cached library that does not load (truncated by a full disk or a killed copy) is deleted and built
+once more.
 The compiled function evaluates the same expression graph: results agree with the interpreted
 function to rounding (the tests hold them to 1e-12). Mapping a compiled function
 (``compiled(f).map(n)``) keeps the loop in C; :func:`map_points` evaluates many points through
@@ -19,9 +22,11 @@ NumPy arguments.
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import hashlib
 import os
+import platform
 import shlex
 import shutil
 import subprocess
@@ -50,9 +55,11 @@ def compiler_command() -> list[str]:
 
 
 def function_key(fn: ca.Function, command: list[str]) -> str:
-    """SHA-256 (hex) of the function's serialisation, the CasADi version and the compile command."""
+    """SHA-256 (hex) of the function's serialisation, the CasADi version, the compile command and
+    the machine (``platform.system()``, ``platform.machine()``)."""
     digest = hashlib.sha256()
-    for part in (fn.serialize(), ca.__version__, " ".join(command + list(COMPILE_FLAGS))):
+    for part in (fn.serialize(), ca.__version__, " ".join(command + list(COMPILE_FLAGS)), platform.system(),
+                 platform.machine()):
         digest.update(part.encode())
         digest.update(b"\0")
     return digest.hexdigest()
@@ -76,9 +83,35 @@ def _warn(reason: str) -> None:
 def compiled(fn: ca.Function) -> ca.Function:
     """``fn`` compiled to C and loaded (from the cache when built before), or ``fn`` itself when
     no C compiler is found or the cache folder cannot be written (one line on stderr). Raises
-    :class:`RcmKinError` when the compiler fails on the code."""
+    :class:`RcmKinError` when the compiler fails on the code or the library does not load."""
+    found = loaded_library(fn)
+    return fn if found is None else _load(fn.name(), found[0])
+
+
+def loaded_library(fn: ca.Function) -> tuple[Path, ctypes.CDLL] | None:
+    """:func:`compiled_library` of ``fn`` and the library loaded (``ctypes``: it stays loaded for
+    the process). A cached library that does not load (truncated, corrupt) is deleted and built
+    once more. None as :func:`compiled_library`; raises :class:`RcmKinError` when the compiler
+    fails or the library built anew does not load either."""
     library = compiled_library(fn)
-    return fn if library is None else _load(fn.name(), library)
+    if library is None:
+        return None
+    try:
+        return library, ctypes.CDLL(str(library))
+    except OSError as exc:
+        failure = exc
+    try:
+        library.unlink(missing_ok=True)
+    except OSError as exc:
+        raise RcmKinError(f"the compiled {fn.name()} does not load ({failure}) and cannot be deleted "
+                          f"({exc.strerror})") from None
+    library = compiled_library(fn)
+    if library is None:
+        return None
+    try:
+        return library, ctypes.CDLL(str(library))
+    except OSError as exc:
+        raise RcmKinError(f"the compiled {fn.name()} does not load, even built anew: {exc}") from None
 
 
 def compiled_library(fn: ca.Function) -> Path | None:

@@ -9,6 +9,7 @@ meshcat camera looks at the scene origin, so the robot is shifted by ``-target``
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import tempfile
@@ -33,6 +34,8 @@ FIELD_OF_VIEW = np.radians(75.0)     # meshcat's default camera: vertical field 
 FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync",
          "--use-gl=swiftshader", "--enable-unsafe-swiftshader", "--hide-scrollbars")
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+LOG_PREFIX = re.compile(r"^\[[\d:/.]+:(?P<level>[A-Z]+):[^\]]*\]\s*")   # Chromium's "[pid:tid:time:LEVEL:file(line)] "
 
 
 @dataclass(frozen=True)
@@ -64,23 +67,46 @@ def side_camera(robot: Robot, q, margin: float = 1.5) -> SideCamera:
 
 def screenshot(page: str | Path, png: str | Path, size: tuple[int, int] = (800, 600),
                budget_ms: int = 5000, timeout: float = 120.0) -> Path:
-    """Render the HTML ``page`` in headless Chromium and write the ``size`` (w, h px) screenshot."""
+    """Render the HTML ``page`` in headless Chromium and write the ``size`` (w, h px) screenshot.
+
+    Chromium draws into a fresh temporary file, moved onto ``png`` only when it is a PNG (Chromium
+    exits 0 even when it writes nothing): a failure leaves an existing ``png`` as it was and raises
+    :class:`RcmKinError` with Chromium's last error line."""
     browser = find_browser()
     if browser is None:
         raise RcmKinError("no Chromium to render the page: install it (Debian: apt-get install chromium) "
                           "or use --renderer matplotlib")
     page, png = Path(page).resolve(), Path(png).resolve()
-    with tempfile.TemporaryDirectory(prefix="rcm-kin-chromium-") as profile:
+    with tempfile.TemporaryDirectory(prefix="rcm-kin-chromium-") as folder:
+        shot, profile = Path(folder) / "screenshot.png", Path(folder) / "profile"
         try:
             run = subprocess.run([browser, *FLAGS, f"--user-data-dir={profile}", f"--virtual-time-budget={budget_ms}",
-                                  f"--window-size={size[0]},{size[1]}", f"--screenshot={png}", page.as_uri()],
+                                  f"--window-size={size[0]},{size[1]}", f"--screenshot={shot}", page.as_uri()],
                                  capture_output=True, text=True, timeout=timeout)
         except subprocess.TimeoutExpired:
             raise RcmKinError(f"{browser} did not render {page.name} within {timeout:g} s") from None
-    if run.returncode != 0 or not png.is_file():
-        last = (run.stderr.strip().splitlines() or ["no message"])[-1]
-        raise RcmKinError(f"{browser} could not render {page.name} (exit {run.returncode}): {last}")
+        if run.returncode != 0 or not _is_png(shot):
+            outcome = "no PNG written" if run.returncode == 0 else f"exit {run.returncode}"
+            raise RcmKinError(f"{browser} could not render {page.name} ({outcome}): {_last_error(run.stderr)}")
+        shutil.move(shot, png)
     return png
+
+
+def _is_png(path: Path) -> bool:
+    """Whether ``path`` is a file starting with the PNG signature."""
+    if not path.is_file():
+        return False
+    with path.open("rb") as f:
+        return f.read(len(PNG_SIGNATURE)) == PNG_SIGNATURE
+
+
+def _last_error(log: str) -> str:
+    """Chromium's last ERROR or FATAL line of ``log`` (else its last line), without the
+    ``[pid:tid:time:LEVEL:file(line)]`` prefix: one readable line."""
+    lines = [line.strip() for line in log.splitlines() if line.strip()]
+    errors = [line for line in lines if (m := LOG_PREFIX.match(line)) and m["level"] in ("ERROR", "FATAL")]
+    last = (errors or lines or ["no message"])[-1]
+    return LOG_PREFIX.sub("", last) or "no message"
 
 
 def browser_png(robot: Robot, q, png: str | Path, frames: tuple[str, ...] = (), size: tuple[int, int] = (800, 600),

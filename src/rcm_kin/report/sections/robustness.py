@@ -59,7 +59,7 @@ def robustness_section(out: Path, samples: int = SAMPLES, duration: float | None
                           if c.has_margin else "n/a"),
                          f"{c.firmware_unstable_fraction:.0%}" if c.has_margin else "n/a"])
     header = ["controller", "axis", "max error p5 / median / p95 / worst (deg)", "mean error median (deg)",
-              "saturated", "diverged", "400 Hz radius median / worst", "400 Hz linearly unstable"]
+              "saturated", "unstable", "400 Hz radius median / worst", "400 Hz linearly unstable"]
     uncertainty = Table.of([[u.name, f"{u.nominal:.4g}", f"{u.sigma:.3g}", f"{u.sigma / abs(u.nominal):.0%}",
                              "log-normal" if u.positive else "normal", u.source] for u in result.uncertain],
                            ["parameter", "nominal", "sigma", "relative", "distribution", "spread from"])
