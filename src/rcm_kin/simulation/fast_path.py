@@ -22,7 +22,8 @@ import numpy as np
 
 from rcm_kin.control import thesis_reference
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG
-from rcm_kin.simulation.controllers import Controller, Sample, StateFeedbackController, ThesisController, _insertion
+from rcm_kin.simulation.controllers import (Controller, Sample, StateFeedbackController, ThesisController,
+                                          _conditional_integral, _insertion)
 from rcm_kin.simulation.plant import DriveTrainPlant
 from rcm_kin.symbolic.compiled import compiled, single_call
 
@@ -65,11 +66,7 @@ def _pitch_law(integral: float, error: float, period: float, limit: float, k_e: 
     """``_conditional_integral`` with the pitch law ``-(k_e e + k_v v + k_i E) + feedforward``."""
     def law(E: float) -> float:
         return -(k_e * error + k_v * v + k_i * E) + feedforward
-    candidate = integral + error * period
-    u = law(candidate)
-    if abs(u) > limit and np.sign(u) == np.sign(law(candidate) - law(integral)):
-        return law(integral), integral
-    return u, candidate
+    return _conditional_integral(integral, error, period, law, limit)
 
 
 @dataclass(frozen=True)

@@ -93,25 +93,22 @@ def loaded_library(fn: ca.Function) -> tuple[Path, ctypes.CDLL] | None:
     the process). A cached library that does not load (truncated, corrupt) is deleted and built
     once more. None as :func:`compiled_library`; raises :class:`RcmKinError` when the compiler
     fails or the library built anew does not load either."""
-    library = compiled_library(fn)
-    if library is None:
-        return None
-    try:
-        return library, ctypes.CDLL(str(library))
-    except OSError as exc:
-        failure = exc
-    try:
-        library.unlink(missing_ok=True)
-    except OSError as exc:
-        raise RcmKinError(f"the compiled {fn.name()} does not load ({failure}) and cannot be deleted "
-                          f"({exc.strerror})") from None
-    library = compiled_library(fn)
-    if library is None:
-        return None
-    try:
-        return library, ctypes.CDLL(str(library))
-    except OSError as exc:
-        raise RcmKinError(f"the compiled {fn.name()} does not load, even built anew: {exc}") from None
+    for attempt in ("cached", "built anew"):
+        library = compiled_library(fn)
+        if library is None:
+            return None
+        try:
+            return library, ctypes.CDLL(str(library))
+        except OSError as exc:
+            failure = exc
+        if attempt == "built anew":
+            break
+        try:
+            library.unlink(missing_ok=True)
+        except OSError as exc:
+            raise RcmKinError(f"the compiled {fn.name()} does not load ({failure}) and cannot be deleted "
+                              f"({exc.strerror})") from None
+    raise RcmKinError(f"the compiled {fn.name()} does not load, even built anew: {failure}")
 
 
 def compiled_library(fn: ca.Function) -> Path | None:
