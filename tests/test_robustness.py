@@ -21,7 +21,7 @@ import rcm_kin
 from rcm_kin import RcmKinError
 from rcm_kin.cli import main
 from rcm_kin.dynamics.drive import DRIVEN, load_drive_parameters
-from rcm_kin.robustness.execution import batches_of, run_robustness
+from rcm_kin.robustness.execution import batches_of, run_in_process, run_robustness
 from rcm_kin.robustness.sampling import (DEFAULT_RELATIVE_SPREAD, draw, read_standard_errors, sample_seeds,
                                          uncertain_parameters, with_values)
 from rcm_kin.robustness.statistics import spread, summarise
@@ -48,7 +48,7 @@ def study(params):
 @pytest.fixture(scope="module")
 def serial(study):
     """The reference: every sample computed in this process, no Dask."""
-    return summarise(study, SEED, run_batch(study, list(enumerate(sample_seeds(SEED, SAMPLES)))))
+    return run_in_process(study, SAMPLES, SEED)
 
 
 # --- draws -------------------------------------------------------------------------------------

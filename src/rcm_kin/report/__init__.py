@@ -6,7 +6,7 @@ self-checks, holding-effort maps with the thesis Fig 4.6/4.7 curves, the drive p
 the counterweight designs, the linear models per grid pose, the model-based gain schedule
 beside the thesis's tables, the thesis's tracking experiments (P against the scheduled
 controller) with animations, the controllers' robustness to the parameter uncertainty (a small
-Monte Carlo on an embedded Dask cluster), and the safety filters and certificates. With a data folder:
+Monte Carlo, the same as `rcm-kin robustness` gives on Dask), and the safety filters and certificates. With a data folder:
 calibration, identification per pose, the grey-box fit, and the identified drive train against
 every step log (each also left out of the fit) on the measured logs.
 
@@ -67,7 +67,7 @@ def _write_sections(out: Path, data, map_points: int, progress: bool, workers: i
     from rcm_kin.report.sections.safety import safety_section
 
     # (label, function, arguments), the longest first (safety ~18 s, the control chain ~15 s, robustness
-    # ~26 s on its own Dask cluster, the rest a few s each on this machine) so that the pool's
+    # ~13 s in its worker, the rest a few s each on this machine) so that the pool's
     # workers finish together
     jobs = [("safety", safety_section, (out,)),
             ("gain schedule, linear models, tracking", _control_sections, (out, _mtm_recording(data))),

@@ -131,6 +131,14 @@ def _batch(batch, study: Study):
     return run_batch(study, batch)
 
 
+def run_in_process(study: Study, samples: int, seed: int = 0) -> Robustness:
+    """The same samples one after another in this process, no cluster (for a caller that is a
+    worker of a pool already, such as the report): equal to :func:`run_robustness` for the same
+    seed (a seed per sample)."""
+    check_robustness(study.experiment, study.duration, len(study.controllers), samples)
+    return summarise(study, seed, run_batch(study, list(enumerate(sample_seeds(seed, samples)))))
+
+
 def run_robustness(study: Study, samples: int, seed: int = 0, client=None, batch_size: int | None = None,
                    progress: bool = True, on_batch: Callable[[int], None] | None = None) -> Robustness:
     """``samples`` samples of ``study`` on ``client``'s cluster (default: an embedded local

@@ -1,5 +1,6 @@
 """Robustness of the controllers to what the model does not know: a small Monte Carlo over the
-parameter uncertainty (:mod:`rcm_kin.robustness`) on the sinusoid, on an embedded Dask cluster."""
+parameter uncertainty (:mod:`rcm_kin.robustness`) on the sinusoid (in the report's own process
+pool; ``rcm-kin robustness`` runs more samples on Dask)."""
 
 from __future__ import annotations
 
@@ -37,16 +38,18 @@ def robustness_section(out: Path, samples: int = SAMPLES, duration: float | None
     """``samples`` draws of the default parameter uncertainty, each controller of ``controllers``
     on the sinusoid (``duration`` s, default the experiment's) with the gain schedule of the
     nominal set; a table of the distributions and their empirical CDFs in ``out/robustness``.
-    ``client``: a ``distributed.Client`` to run on (default: an embedded local cluster)."""
+    ``client``: a ``distributed.Client`` to run on (default: none, the samples run in this process,
+    which is one of the report's pool workers; the result is the same either way)."""
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.robustness.execution import run_robustness
+    from rcm_kin.robustness.execution import run_in_process, run_robustness
     from rcm_kin.robustness.figures import robustness_figure
     from rcm_kin.robustness.sampling import uncertain_parameters
     from rcm_kin.robustness.task import Study
 
     params = load_drive_parameters()
     study = Study(params, uncertain_parameters(params), tuple(controllers), "sine", duration, SETTLED_FROM)
-    result = run_robustness(study, samples, SEED, client, progress=False)
+    result = (run_in_process(study, samples, SEED) if client is None
+              else run_robustness(study, samples, SEED, client, progress=False))
     folder = output_folder(out / "robustness")
     figure = robustness_figure(result, folder / "robustness_sine.png")
     rows = []
