@@ -540,3 +540,6 @@ def test_weights_sweep_at_the_default_budgets_is_the_shipped_schedule(params):
         [m["roll"].max_error_deg, m["pitch"].max_error_deg, m["pitch"].rms_pwm], rel=1e-12)
     softer, = weights_batch([(4.0, 0.5)], params, duration=DURATION, points=2)
     assert softer.rms_pwm_roll != row.rms_pwm_roll
+    assert row.stable and row.spectral_radius < 1.0
+    greedy, = weights_batch([(1e-9, 1.0)], params, duration=DURATION, points=2)   # an error budget no loop meets
+    assert greedy.spectral_radius > 1.0 and not greedy.stable

@@ -75,11 +75,13 @@ def weights_figure(rows, path: str | Path) -> Path:
     for ax, joint in zip(axes, ("roll", "pitch")):
         x = [getattr(r, f"rms_pwm_{joint}") for r in rows]
         y = [getattr(r, f"max_error_{joint}_deg") for r in rows]
-        ax.scatter(x, y, c=[r.spectral_radius for r in rows], cmap="viridis")
+        ax.scatter(x, y, c=[r.spectral_radius for r in rows], cmap="viridis",
+                   edgecolors=["none" if r.stable else "red" for r in rows], linewidths=1.5)
         for r, xi, yi in zip(rows, x, y):
             ax.annotate(f"{r.error_budget_deg:g} deg/{r.pwm_fraction:g}", (xi, yi), fontsize=7,
                         textcoords="offset points", xytext=(3, 3))
         ax.set(xlabel="RMS PWM (counts)", ylabel="largest error (deg)", title=joint)
         ax.grid(alpha=0.3)
-    fig.suptitle("LQR/LQI budgets (error budget / PWM fraction): tracking against PWM use; colour: 400 Hz radius")
+    fig.suptitle("LQR/LQI budgets (error budget deg / PWM fraction): tracking against PWM use\n"
+                 "colour: the 400 Hz loop's spectral radius; red ring: that loop unstable", fontsize=10)
     return save(fig, Path(path))

@@ -51,7 +51,9 @@ class CounterweightRow:
 @dataclass(frozen=True)
 class WeightsRow:
     """One LQR/LQI budget: the budgets, and on the sinusoid the largest and mean errors (deg), the
-    RMS PWM (counts) and the 400 Hz loop's worst spectral radius."""
+    RMS PWM (counts), the 400 Hz loop's worst spectral radius over the grid, and whether that loop
+    is stable at every grid pose (radius below 1: the errors of an unstable design are those of
+    its bounded, saturated run, not of a design to flash)."""
 
     error_budget_deg: float
     pwm_fraction: float
@@ -62,6 +64,7 @@ class WeightsRow:
     rms_pwm_roll: float
     rms_pwm_pitch: float
     spectral_radius: float
+    stable: bool
 
 
 def counterweight_batch(batch: list[tuple[float, float]], params: DriveParameters,
@@ -104,7 +107,7 @@ def weights_batch(batch: list[tuple[float, float]], params: DriveParameters, exp
         _, radius, _ = loop_margins(model, schedule, linear_law("scheduled", schedule), points)
         rows.append(WeightsRow(error_deg, fraction, m["roll"].max_error_deg, m["pitch"].max_error_deg,
                                m["roll"].mean_error_deg, m["pitch"].mean_error_deg, m["roll"].rms_pwm,
-                               m["pitch"].rms_pwm, radius))
+                               m["pitch"].rms_pwm, radius, bool(radius < 1.0)))
     return rows
 
 
