@@ -195,8 +195,8 @@ def new_output(path: str, force: bool, suffixes: tuple[str, ...] = ()) -> Path:
     return out
 
 
-def add_force(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
+def add_force(parser: argparse.ArgumentParser, help_text: str = "overwrite the output file if it exists") -> None:
+    parser.add_argument("--force", action="store_true", help=help_text)
 
 
 def progress_wanted(args) -> bool:

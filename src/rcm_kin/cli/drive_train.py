@@ -34,7 +34,7 @@ def add_identify(sub) -> None:
     p.add_argument("--cv", action="store_true",
                    help="leave-one-log-out cross-validation, each fold fitted from scratch (minutes)")
     p.add_argument("--seed", type=count(0, 2**32 - 1), default=0, help="seed of the evolutionary search (default 0)")
-    p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    add_force(p, "overwrite --out if it exists")
     add_params(p, "starting drive parameter TOML (default: the shipped set)")
     add_json(p, '{"parameters", "standard_errors", "jackknife_standard_errors", "undetermined", "logs", "fits", '
                 '"cross_validation", "skipped", "written"}')
@@ -123,7 +123,7 @@ def add_excite(sub) -> None:
                    help="harmonics of each Fourier series (2 to 20, default 5)")
     p.add_argument("--seed", type=count(0, 2**32 - 1), default=0,
                    help="seed of the optimisation's random starts (default 0)")
-    p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    add_force(p, "overwrite --out if it exists")
     add_params(p, "drive parameter TOML for the feedforward and the drive trains (default: the shipped set)")
     add_json(p, '{"written", "condition_number", "baseline_condition_number", "standard_errors": {joint: '
                 '{"regressor", "stick_slip"}}, "period_s", ...} (SI)')

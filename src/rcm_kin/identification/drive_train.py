@@ -30,7 +30,7 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import ENCODER_COUNT, HOME_INSERTION, PWM_LIMIT
 from rcm_kin.identification.recorded_law import RecordedLaw, recover_law
 from rcm_kin.identification.records import resample
-from rcm_kin.identification.telemetry import load_telemetry, step_index
+from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry, step_index
 
 PERIOD = 1e-3          # s: the logs are resampled to this grid (PWM held, angle interpolated)
 AFTER_STEP = 2.5       # s of each log used after the step
@@ -69,19 +69,19 @@ class AxisLog:
         return float(np.degrees(self.pose[0])), float(np.degrees(self.pose[1]))
 
 
-def whole_log(path: str | Path, joint: str, period: float | None = PERIOD) -> AxisLog:
-    """All of ``joint``'s record in the log at ``path`` on a ``period`` s grid (the PWM held, the
-    angle interpolated), or with ``period`` None the logged samples themselves as controller ticks
-    at their mean interval (a closed-loop log: the firmware acted once per logged sample; its
-    time stamps are whole milliseconds, so intervals read 2 or 3 ms around a 2.4 ms loop). From
-    its first sample (taken at rest); the other axis held at its mean logged angle (0 when not
-    logged)."""
-    log = load_telemetry(path)
+def whole_log(source: str | Path | TelemetryLog, joint: str, period: float | None = PERIOD) -> AxisLog:
+    """All of ``joint``'s record in the log at ``source`` (a path, or the log already read) on a
+    ``period`` s grid (the PWM held, the angle interpolated), or with ``period`` None the logged
+    samples themselves as controller ticks at their mean interval (a closed-loop log: the firmware
+    acted once per logged sample; its time stamps are whole milliseconds, so intervals read 2 or
+    3 ms around a 2.4 ms loop). From its first sample (taken at rest); the other axis held at its
+    mean logged angle (0 when not logged)."""
+    log = source if isinstance(source, TelemetryLog) else load_telemetry(source)
     if period is None:
         log.require(joint)
         t, u, y = log.time, log.pwm[joint], log.position[joint]
         if t.size < 10 or not t[-1] > t[0]:
-            raise RcmKinError(f"{Path(path).name}: too few time-stamped samples to identify from")
+            raise RcmKinError(f"{log.path.name}: too few time-stamped samples to identify from")
         period = float((t[-1] - t[0]) / (t.size - 1))
     else:
         u, y, period = resample(log, joint, period)
@@ -90,7 +90,7 @@ def whole_log(path: str | Path, joint: str, period: float | None = PERIOD) -> Ax
         if other in log.position and other != joint:
             pose[k] = np.radians(np.mean(log.position[other]))
     pose[("roll", "pitch").index(joint)] = np.radians(y[0])
-    return AxisLog(Path(path).name, joint, period, u, np.radians(y), pose)
+    return AxisLog(log.path.name, joint, period, u, np.radians(y), pose)
 
 
 def _span(record: AxisLog, k0: int, k1: int, name: str) -> AxisLog:
@@ -119,11 +119,12 @@ def closed_loop_log(path: str | Path, joint: str, start: float = 0.0, duration: 
     (:func:`whole_log` with no resampling), from its first rest (the angle unchanged for at least
     ``min_rest`` s) after ``start`` s, with the law that ran (:func:`recover_law`, on the same ticks)
     and its excitation. A log whose law is not recovered is a clear error."""
-    law = recover_law(load_telemetry(path), joint, float(PWM_LIMIT[("roll", "pitch").index(joint)]))
+    log = load_telemetry(path)
+    law = recover_law(log, joint, float(PWM_LIMIT[("roll", "pitch").index(joint)]))
     name = Path(path).name
     if law.problem():
         raise RcmKinError(f"{name}: cannot simulate the {joint} in its loop: {law.problem()}")
-    record = whole_log(path, joint, period=None)
+    record = whole_log(log, joint, period=None)
     record = replace(record, law=law, excitation=law.excitation(record.measured, record.pwm, record.period))
     still = np.r_[False, np.diff(record.measured) == 0.0]
     run = np.zeros(still.size, dtype=int)

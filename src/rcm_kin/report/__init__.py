@@ -17,7 +17,6 @@ link in index.html is relative to the report folder, so the folder can be moved 
 from __future__ import annotations
 
 import html
-import os
 from pathlib import Path
 
 from rcm_kin.errors import RcmKinError, output_folder
@@ -32,6 +31,7 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     may use, at most 4); each writes its own files and returns its data object, and the index
     lists them in a fixed order, so the report is the same whatever the number of workers or the
     order in which they finish. A report that fails leaves an index.html that says so."""
+    from rcm_kin.robustness.execution import machine_workers
     from rcm_kin.statics.calibration import calibration_logs
     from rcm_kin.statics.gravity_map import check_map_size
 
@@ -42,7 +42,7 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
         calibration_logs(data)           # the measured logs are there before minutes of work
     out = output_folder(out)
     try:
-        return _write_sections(out, data, map_points, progress, workers or min(4, _cores()))
+        return _write_sections(out, data, map_points, progress, workers or min(4, machine_workers()))
     except (RcmKinError, OSError) as exc:   # a folder with files but no index would look like a report
         (out / "index.html").write_text(f"<!doctype html><title>rcm-kin report: failed</title>"
                                         f"<p>The report was not completed: {html.escape(str(exc))}</p>\n")
@@ -98,11 +98,6 @@ def _write_sections(out: Path, data, map_points: int, progress: bool, workers: i
         bar.set_postfix_str("index.html")
         bar.update()
     return index
-
-
-def _cores() -> int:
-    """The cores this process may use (all of them where the OS cannot say)."""
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
 def _control_sections(out: Path, recording: Path | None) -> tuple:
