@@ -35,7 +35,7 @@ def cmd_export(args) -> None:
                           f"{robot.name} has neither (rcm-kin export psm --c DIR)")
     mjcf = None if args.mjcf is None else new_output(args.mjcf, args.force, (".xml",))
     if args.c is not None and not str(args.c).strip():
-        raise RcmKinError("--c: an empty folder path")
+        raise RcmKinError("--c: an empty folder path; give the folder for rcm_psm_model.h/.c (created if missing)")
     if args.c is not None and not args.force:
         from rcm_kin.codegen.psm_model import c_files
 

@@ -123,7 +123,8 @@ def closed_loop_log(path: str | Path, joint: str, start: float = 0.0, duration: 
     law = recover_law(log, joint, float(PWM_LIMIT[("roll", "pitch").index(joint)]))
     name = Path(path).name
     if law.problem():
-        raise RcmKinError(f"{name}: cannot simulate the {joint} in its loop: {law.problem()}")
+        raise RcmKinError(f"{name}: cannot simulate the {joint} in its loop: {law.problem()}; only logs run under "
+                          "a linear law plus a binary excitation (the PRBS experiments) can be")
     record = whole_log(log, joint, period=None)
     record = replace(record, law=law, excitation=law.excitation(record.measured, record.pwm, record.period))
     still = np.r_[False, np.diff(record.measured) == 0.0]
@@ -133,7 +134,8 @@ def closed_loop_log(path: str | Path, joint: str, start: float = 0.0, duration: 
     resting = run >= int(round(min_rest / record.period))
     first = np.flatnonzero(resting & (record.time >= start))
     if first.size == 0:
-        raise RcmKinError(f"{name}: the {joint} never rests for {min_rest} s after {start} s")
+        raise RcmKinError(f"{name}: the {joint} never rests for {min_rest} s after {start} s; the simulation in the "
+                          "loop starts from a rest: give a log in which the joint holds still for a moment")
     k0 = int(first[0])
     k1 = record.pwm.size if duration is None else min(record.pwm.size, k0 + int(round(duration / record.period)))
     return _span(record, k0, k1, f"{name}@{record.time[k0]:.1f}s")
