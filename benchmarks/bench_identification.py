@@ -10,10 +10,11 @@ workers); the model evaluations it makes are counted and timed by wrapping
 
 One model evaluation is ``residuals`` (``identification/drive_train.py``): the six step logs
 simulated by the numba stick-slip model (1 ms PWM samples, 4 substeps of 0.25 ms each) with the
-shipped ``[drive_train.roll]``. The plain library call a user would write for the same simulated
-time is ``period_map(driven_dynamics(psm, params).forward, period)`` (RK4, 4 substeps) called
-once per PWM sample in a Python loop, all three axes: at the logs' 1 ms (same step, 0.25 ms)
-and at the firmware's 2.5 ms. Without the data the identify timing is skipped and the model
+shipped ``[drive_train.roll]``. Beside it, for the same simulated time in Python loops, all three axes, at the logs' 1 ms (same
+step, 0.25 ms) and at the firmware's 2.5 ms: the plain library call a user would write
+(Pinocchio's ``crba`` and ``nonLinearEffects`` on the reduced closed chain, semi-implicit Euler,
+4 substeps; ``bench_simulation.pinocchio_period``) and our smooth model's
+``period_map(driven_dynamics(psm, params).forward, period)`` (CasADi RK4, 4 substeps). Without the data the identify timing is skipped and the model
 evaluation runs on synthetic steps at the same operating points.
 """
 
@@ -28,6 +29,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from bench_simulation import pinocchio_period  # noqa: E402
 from common import per_call  # noqa: E402
 
 import rcm_kin.identification.drive_train as drive_train  # noqa: E402
@@ -94,6 +96,26 @@ def model_evaluation(data: Path | None) -> None:
                     out[k] = float(x[0])
         rows.append((f"period_map RK4 x4 (CasADi), {period * 1e3:g} ms period, Python loop",
                      per_call(loop, 1, repeats=3)))
+
+    # the plain library call: Pinocchio (crba + nonLinearEffects on the reduced closed chain, the
+    # drive's smooth friction) stepped in a Python loop, 4 substeps per period, same simulated time
+    for period in (drive_train.PERIOD, FIRMWARE_PERIOD):
+        step = pinocchio_period(psm, params, period)
+        runs = []
+        for log in logs:
+            hold = holding_pwm(smooth, log.pose)
+            n = int(round((log.pwm.size - 1) * log.period / period))
+            pwm = log.pwm[(np.arange(n) * period / log.period + 1e-9).astype(int)]
+            q0 = psm.to_reduced(np.r_[log.pose, np.zeros(psm.nq - 3)])
+            runs.append((q0, [np.array([u, hold[1], hold[2]]) for u in pwm]))
+
+        def pinocchio_loop():
+            for q0, inputs in runs:
+                q, v = q0, np.zeros(psm.reduced.nv)
+                for u in inputs:
+                    q, v = step(q, v, u)
+        rows.append((f"Pinocchio crba/nle x4, {period * 1e3:g} ms period, Python loop",
+                     per_call(pinocchio_loop, 1, repeats=3)))
 
     print(f"one model evaluation on {len(logs)} logs ({source}), {simulated:.2f} simulated s in all:")
     width = max(len(name) for name, _ in rows)
