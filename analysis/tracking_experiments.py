@@ -20,7 +20,7 @@ from rcm_kin.dynamics.drive import load_drive_parameters
 from rcm_kin.report.figures import error_comparison_figure, greybox_figure, tracking_figure
 from rcm_kin.identification.greybox import fit_greybox, step_logs, write_greybox_parameters
 from rcm_kin.simulation.controllers import CONTROLLERS, make_controller
-from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule
+from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule, start_hold
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import simulate, tracking_metrics
 
@@ -39,7 +39,9 @@ def run_all(params, trajectory, label: str, out: Path) -> list[dict]:
     rows = []
     for experiment in ("sine", "target"):
         reference = experiment_reference(experiment, settings.period, trajectory=trajectory)
-        results = [simulate(plant.step, c, reference, settings, initial=plant.initial) for c in controllers(schedule)]
+        hold = start_hold(reference, params)
+        results = [simulate(plant.step, c, reference, settings, initial=plant.initial, hold=hold)
+                   for c in controllers(schedule)]
         for r in results:
             tag = r.controller.replace(" ", "_").replace(",", "")
             tracking_figure(r, out / f"{label}_{experiment}_{tag}.png", title=f"{experiment}, {r.controller}:")

@@ -14,10 +14,10 @@ import pytest
 from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.simulation import compiled_loop
 from rcm_kin.simulation.compiled_loop import compiled_drive_train, compiled_smooth, loop_law, simulate_compiled
-from rcm_kin.simulation.controllers import CONTROLLERS, make_controller
+from rcm_kin.simulation.controllers import CONTROLLERS, Hold, make_controller
 from rcm_kin.simulation.experiments import psm_plant_and_schedule
 from rcm_kin.simulation.firmware import FirmwareSettings
-from rcm_kin.simulation.loop import simulate
+from rcm_kin.simulation.loop import firmware_units, simulate
 from rcm_kin.simulation.plant import drive_train_plant, period_map
 from rcm_kin.simulation.references import sine_reference, step_reference
 
@@ -70,14 +70,16 @@ def test_plant_step_equals_the_reference_plant(plants):
 def test_compiled_loop_equals_the_reference_tick_for_tick(plants, experiment, noise):
     """Every controller, with and without encoder noise, on a moving reference (feedforward and
     friction compensation act) and on steps: positions within 1e-9 rad (the insertion 1e-9 m),
-    the sent PWM identical, the commands within 1e-9 counts."""
+    the sent PWM identical, the commands within 1e-9 counts. The integrals start charged with a
+    holding PWM (not the model's, so that a wrong charge shows)."""
     step, initial, fast_plant, schedule = plants
     settings = FirmwareSettings(noise_counts=noise)
     ref = sine_reference(0.8, T) if experiment == "sine" else step_reference(0.8, T, at=0.3)
+    hold = Hold(firmware_units(ref.position[0]), np.array([9.0, -40.0, 0.0]))
     for name in CONTROLLERS:
         law = make_controller(name, schedule)
-        slow = simulate(step, law, ref, settings, seed=7, settle=0.5, initial=initial)
-        fast = simulate_compiled(fast_plant, loop_law(law), law.name, ref, settings, seed=7, settle=0.5)
+        slow = simulate(step, law, ref, settings, seed=7, settle=0.5, initial=initial, hold=hold)
+        fast = simulate_compiled(fast_plant, loop_law(law, hold), law.name, ref, settings, seed=7, settle=0.5)
         assert fast.controller == name and fast.position.shape == slow.position.shape
         np.testing.assert_allclose(fast.position[:, :2], slow.position[:, :2], rtol=0, atol=np.degrees(1e-9))
         np.testing.assert_allclose(fast.position[:, 2], slow.position[:, 2], rtol=0, atol=1e-9)

@@ -245,6 +245,54 @@ def test_thesis_controller_applies_the_flashed_law_and_signs():
     assert u[1] == pytest.approx(-(kp[0] * e[1] + kp[1] * v[1] + kp[2] * e[1] * T), abs=1e-12)
 
 
+def test_integrals_start_charged_with_the_holding_pwm():
+    """At the hold pose (off the gain grids) with zero error, velocity and reference motion, every
+    controller with an integral sends exactly the holding PWM from its initial memory and keeps
+    that memory (nothing to integrate); the P controller, which has none, sends nothing. Without
+    a hold the integrals start at zero."""
+    from rcm_kin.simulation.controllers import CONTROLLERS, Hold, Sample
+    from rcm_kin.simulation.experiments import psm_plant_and_schedule
+
+    _, schedule = psm_plant_and_schedule(period=T)
+    pose = np.array([10.0, -7.0, 0.08])
+    hold = Hold(pose, np.array([12.5, -83.0, 0.0]))
+    sample = Sample(pose, np.zeros(3), pose, np.zeros(3), np.zeros(3), T, np.array([100.0, 150.0, 100.0]))
+    for name in CONTROLLERS:
+        c = make_controller(name, schedule)
+        memory = c.initial_memory(hold)
+        u, after = c.command(memory, sample)
+        if name == "p":
+            np.testing.assert_array_equal(u[:2], 0.0)
+            continue
+        np.testing.assert_allclose(u[:2] if name == "pid" else u[1], hold.pwm[:2] if name == "pid" else hold.pwm[1],
+                                   rtol=0, atol=1e-9, err_msg=name)
+        integrals = slice(0, 2) if name == "pid" else slice(0, 1)
+        np.testing.assert_allclose(after[integrals], memory[integrals], rtol=0, atol=1e-12, err_msg=name)
+        assert np.all(c.initial_memory()[integrals] == 0.0), name
+
+
+def test_the_sinusoid_starts_from_the_steady_hold_of_its_first_pose(psm, params):
+    """run_experiment charges the thesis law's pitch integral with the model's holding PWM at the
+    first pose (roll = pitch = 0): standing at that pose, the pitch stays within two encoder counts
+    of it; with an empty integral (the loop from the same start) it sags by the holding PWM over
+    Kp, whole counts away."""
+    from rcm_kin.simulation.controllers import ThesisController
+    from rcm_kin.simulation.experiments import psm_plant_and_schedule, start_hold
+    from rcm_kin.simulation.references import Reference
+
+    n = 400
+    ref = Reference(np.arange(n) * T, np.tile([0.0, 0.0, 0.08], (n, 1)), np.zeros((n, 3)), np.zeros((n, 3)))
+    hold = start_hold(ref, params)
+    model = driven_dynamics(psm, params)
+    np.testing.assert_allclose(hold.pwm, holding_pwm(model, ref.position[0]), rtol=0, atol=1e-12)
+    plant, _ = psm_plant_and_schedule(params, T)
+    count = FirmwareSettings().encoder_count[1]
+    charged = simulate(plant.step, ThesisController(), ref, initial=plant.initial, hold=hold)
+    empty = simulate(plant.step, ThesisController(), ref, initial=plant.initial)
+    assert np.max(np.abs(charged.measured[:, 1])) <= 2 * count
+    assert np.max(np.abs(empty.measured[:, 1])) > 0.5 * abs(hold.pwm[1]) / 200.0 > 10 * count
+
+
 @pytest.mark.parametrize("plant", ["drive-train", "smooth"])
 def test_fast_path_equals_the_readable_classes_tick_for_tick(plant, params):
     """Every controller on both plants: compiled plant functions and stacked gain tables against

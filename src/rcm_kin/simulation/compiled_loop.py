@@ -54,7 +54,7 @@ from rcm_kin.dynamics import stick_slip
 from rcm_kin.dynamics.stick_slip import SUBSTEP, _advance
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import INSERTION_KP
-from rcm_kin.simulation.controllers import (Controller, PController, PIDController, StateFeedbackController,
+from rcm_kin.simulation.controllers import (Controller, Hold, PController, PIDController, StateFeedbackController,
                                             ThesisController)
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import FIRMWARE_SCALE, SimulationResult, check_run, firmware_units
@@ -209,14 +209,14 @@ class LoopLaw:
     memory: np.ndarray           # the controller's initial memory
 
 
-def loop_law(controller: Controller) -> LoopLaw | None:
-    """``controller`` as a :class:`LoopLaw`, or None for a controller the kernel does not know
-    (it then runs in Python)."""
+def loop_law(controller: Controller, hold: Hold | None = None) -> LoopLaw | None:
+    """``controller`` as a :class:`LoopLaw` with the memory ``initial_memory(hold)``, or None for a
+    controller the kernel does not know (it then runs in Python)."""
     no_grid, no_table, no_hold = np.zeros(2), np.zeros((2, 2, 7)), np.zeros((2, 2, 2))
     off, gains = np.zeros(4, dtype=bool), np.zeros(6)
     if type(controller) not in (PController, PIDController, ThesisController, StateFeedbackController):
         return None
-    memory = np.asarray(controller.initial_memory(), dtype=float)
+    memory = np.asarray(controller.initial_memory(hold), dtype=float)
     if type(controller) is PController:
         gains[:2] = controller.kp
         return LoopLaw(P, off, gains, no_grid, no_grid, no_table, no_hold, np.zeros(3), memory)

@@ -8,7 +8,16 @@ roll and pitch angles and extends the insertion), so ``u = -(Kp e + ...)`` for r
 The insertion is held by the firmware's P loop (30 PWM/mm) under every controller.
 
 The interface is :class:`Controller` (a ``typing.Protocol``). To add a controller: a dataclass
-with ``name``, ``initial_memory()`` and ``command``, and an entry in :func:`make_controller`.
+with ``name``, ``initial_memory(hold)`` and ``command``, and an entry in :func:`make_controller`.
+
+A run starts from the steady hold of its first pose (:class:`Hold`): a controller with an error
+integral starts it where the law, at zero error and rest, sends the PWM that holds that pose. The
+robot's firmware carries its holding effort in the integral once it has held a pose long enough:
+in the roll-step log at (0, 0), where the robot rests between experiments and the sinusoid
+starts, the pitch, held by ``u = -(220.7 e + 0.32 v + Ki E)``, takes 92 of its 86 PWM from the
+integral (``analysis/holding_law.py``; at the poses visited only for a step, -22 to +14 PWM). With the
+thesis's ``Ki`` of about 0.15 PWM/(deg s) that charge takes minutes to build, so a run that began
+with an empty integral would spend its whole length with the holding PWM missing.
 """
 
 from __future__ import annotations
@@ -39,17 +48,28 @@ class Sample:
     pwm_limit: np.ndarray               # counts, for anti-windup
 
 
+@dataclass(frozen=True)
+class Hold:
+    """The steady hold a run starts from: the first reference pose, and the PWM (hardware sign)
+    that holds it at rest (the model's ``g(q) / k_u``,
+    :func:`rcm_kin.dynamics.state_space.holding_pwm`)."""
+
+    position: np.ndarray                # (3,) deg, deg, m
+    pwm: np.ndarray                     # (3,) counts
+
+
 @runtime_checkable
 class Controller(Protocol):
     """What the simulated firmware runs every period (:func:`rcm_kin.simulation.loop.simulate`).
 
     ``command`` maps the memory and one :class:`Sample` to the PWM (3,) (counts, hardware sign,
     before saturation) and the next memory; ``initial_memory`` is the memory before the first
-    sample (a float array, possibly empty). Pure: no state outside ``memory``."""
+    sample (a float array, possibly empty): integrals charged to hold ``hold`` when given, else
+    zero. Pure: no state outside ``memory``."""
 
     name: str
 
-    def initial_memory(self) -> np.ndarray:
+    def initial_memory(self, hold: Hold | None = None) -> np.ndarray:
         ...
 
     def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
@@ -77,7 +97,7 @@ class PController:
     kp: tuple[float, float] = P_GAINS
     name: str = "p"
 
-    def initial_memory(self) -> np.ndarray:
+    def initial_memory(self, hold: Hold | None = None) -> np.ndarray:
         return np.zeros(0)
 
     def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
@@ -96,8 +116,9 @@ class PIDController:
     kd: tuple[float, float] = (5.0, 15.0)
     name: str = "pid"
 
-    def initial_memory(self) -> np.ndarray:
-        return np.array([0.0, 0.0, np.nan, np.nan])      # integrals, previous errors
+    def initial_memory(self, hold: Hold | None = None) -> np.ndarray:
+        integrals = np.zeros(2) if hold is None else -np.asarray(hold.pwm[:2]) / np.asarray(self.ki)
+        return np.r_[integrals, np.nan, np.nan]          # integrals (deg s), previous errors
 
     def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         e = sample.reference[:2] - sample.position[:2]
@@ -133,8 +154,13 @@ class StateFeedbackController:
     friction: bool = False
     name: str = "scheduled"
 
-    def initial_memory(self) -> np.ndarray:
-        return np.zeros(1)                                  # pitch error integral, deg s
+    def initial_memory(self, hold: Hold | None = None) -> np.ndarray:
+        if hold is None:
+            return np.zeros(1)                              # pitch error integral, deg s
+        s, at = self.schedule, hold.position[:2]
+        k_pitch = scheduled_gains(s, *(at if self.scheduled else np.zeros(2)))[1]
+        gravity = bilinear(s.roll_deg, s.pitch_deg, s.u_hold, at[0], at[1])[1] if self.gravity else 0.0
+        return np.array([-(hold.pwm[1] - gravity) / k_pitch[2]])
 
     def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         s = self.schedule
@@ -169,8 +195,12 @@ class ThesisController:
 
     name: str = "thesis"
 
-    def initial_memory(self) -> np.ndarray:
-        return np.zeros(1)                                  # pitch error integral, deg s
+    def initial_memory(self, hold: Hold | None = None) -> np.ndarray:
+        if hold is None:
+            return np.zeros(1)                              # pitch error integral, deg s
+        k_pitch = bilinear(np.asarray(THESIS_ROLL_DEG), np.asarray(THESIS_PITCH_DEG), thesis_reference.K_PITCH,
+                           hold.position[0], hold.position[1])
+        return np.array([-hold.pwm[1] / k_pitch[2]])
 
     def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         roll, pitch = np.asarray(THESIS_ROLL_DEG), np.asarray(THESIS_PITCH_DEG)

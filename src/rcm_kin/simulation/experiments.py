@@ -15,15 +15,15 @@ import numpy as np
 
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, schedule_gains
 from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
-from rcm_kin.dynamics.state_space import driven_dynamics
+from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
 from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.robot import load_robot
 from rcm_kin.simulation.compiled_loop import (CompiledPlant, compiled_drive_train, compiled_smooth, loop_law,
                                               simulate_compiled)
-from rcm_kin.simulation.controllers import make_controller
+from rcm_kin.simulation.controllers import Hold, make_controller
 from rcm_kin.simulation.fast_path import compiled_period_map, fast_controller, fast_plant
 from rcm_kin.simulation.firmware import FirmwareSettings
-from rcm_kin.simulation.loop import SimulationResult, simulate
+from rcm_kin.simulation.loop import SimulationResult, firmware_units, simulate
 from rcm_kin.simulation.plant import drive_train_plant, period_map
 from rcm_kin.simulation.references import EXPERIMENTS, Reference, sine_reference, step_reference, target_reference
 
@@ -44,6 +44,7 @@ def experiment_reference(experiment: str, period: float, duration: float | None 
 
 
 _BUILT: dict[str, tuple] = {}     # repr(params, period, substeps, fast) -> (plant, schedule); models take ~1 s
+_GRAVITY: dict[str, object] = {}  # repr(params) -> DrivenDynamics (its gravity gives the holding PWM)
 
 
 def _plant_and_schedule(params: DriveParameters, period: float, substeps: int, fast: bool):
@@ -86,6 +87,16 @@ def psm_plant_and_schedule(params: DriveParameters | None = None, period: float 
     return _plant_and_schedule(params or load_drive_parameters(), period, substeps, fast)
 
 
+def start_hold(reference: Reference, params: DriveParameters | None = None) -> Hold:
+    """The steady hold of ``reference``'s first pose with the model of ``params`` (default: the
+    shipped set): the pose in firmware units and its holding PWM (``g(q) / k_u``, counts)."""
+    params = params or load_drive_parameters()
+    key = repr(params)
+    if key not in _GRAVITY:
+        _GRAVITY[key] = driven_dynamics(load_robot("psm"), params)
+    return Hold(firmware_units(reference.position[0]), holding_pwm(_GRAVITY[key], reference.position[0]))
+
+
 def run_experiment(experiment: str, controller: str, duration: float | None = None,
                    params: DriveParameters | None = None, settings: FirmwareSettings | None = None,
                    trajectory=None, seed: int = 0, progress: bool = False, fast: bool = True) -> SimulationResult:
@@ -93,17 +104,18 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
     whole loop in one compiled kernel (:mod:`rcm_kin.simulation.compiled_loop`); without a C
     compiler the per-tick fast path (:mod:`rcm_kin.simulation.fast_path`, compiled plant functions
     and stacked gain tables); ``False`` runs the readable reference classes. All give the same
-    result (tests/test_compiled_loop.py, tests/test_simulation.py)."""
+    result (tests/test_compiled_loop.py, tests/test_simulation.py). The run starts from the steady
+    hold of the first pose (:func:`start_hold`): integrals charged with its holding PWM."""
     settings = settings or FirmwareSettings()
     plant, schedule = psm_plant_and_schedule(params, settings.period, fast=fast)
     reference = experiment_reference(experiment, settings.period, duration, trajectory)
-    law = make_controller(controller, schedule)
-    arrays = loop_law(law) if isinstance(plant, CompiledPlant) else None
+    law, hold = make_controller(controller, schedule), start_hold(reference, params)
+    arrays = loop_law(law, hold) if isinstance(plant, CompiledPlant) else None
     if arrays is not None:
         result = simulate_compiled(plant, arrays, law.name, reference, settings, seed=seed, progress=progress)
     else:
         result = simulate(plant.step, fast_controller(law) if fast else law, reference, settings, seed=seed,
-                          progress=progress, initial=plant.initial)
+                          progress=progress, initial=plant.initial, hold=hold)
     check_in_limits(result)
     return result
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from rcm_kin.control import thesis_reference
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG
-from rcm_kin.simulation.controllers import (Controller, Sample, StateFeedbackController, ThesisController,
+from rcm_kin.simulation.controllers import (Controller, Hold, Sample, StateFeedbackController, ThesisController,
                                           _conditional_integral, _insertion)
 from rcm_kin.simulation.plant import DriveTrainPlant
 from rcm_kin.symbolic.compiled import compiled, single_call
@@ -81,8 +81,8 @@ class FastStateFeedback:
     def name(self) -> str:
         return self.reference.name
 
-    def initial_memory(self) -> np.ndarray:
-        return self.reference.initial_memory()
+    def initial_memory(self, hold: Hold | None = None) -> np.ndarray:
+        return self.reference.initial_memory(hold)
 
     def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         c = self.reference
@@ -112,8 +112,8 @@ class FastThesis:
     gains: StackedTable           # K_ROLL (2), K_PITCH (3)
     name: str = "thesis"
 
-    def initial_memory(self) -> np.ndarray:
-        return np.zeros(1)
+    def initial_memory(self, hold: Hold | None = None) -> np.ndarray:
+        return ThesisController().initial_memory(hold)
 
     def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         position, reference = sample.position.tolist(), sample.reference.tolist()

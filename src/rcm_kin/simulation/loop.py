@@ -3,7 +3,9 @@
 At tick ``k`` (time ``k T``) the firmware reads the encoders, estimates the velocities, runs
 the controller and sends the PWM, which the plant integrates over ``[k T, (k + 1) T)``. Before
 ``t = 0`` the loop holds the reference's first pose for ``settle`` s, so every experiment starts
-from the pose the controller holds (with its steady error), as the robot's did.
+from the pose the controller holds (with its steady error), as the robot's did; given the
+:class:`~rcm_kin.simulation.controllers.Hold` of that pose, the controller's integrals start
+charged with the holding PWM (the steady state the robot's slow integrals had reached).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import numpy as np
 from tqdm import tqdm
 
 from rcm_kin.errors import RcmKinError
-from rcm_kin.simulation.controllers import Controller, Sample
+from rcm_kin.simulation.controllers import Controller, Hold, Sample
 from rcm_kin.simulation.firmware import FirmwareSettings, encoder_reading, sent_pwm, velocity_estimate
 from rcm_kin.simulation.references import Reference
 
@@ -63,10 +65,11 @@ def check_run(reference: Reference, settings: FirmwareSettings, settle: float) -
 
 def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: Controller, reference: Reference,
              settings: FirmwareSettings | None = None, seed: int = 0, settle: float = 1.0,
-             progress: bool = False, initial: Callable[[np.ndarray], np.ndarray] | None = None) -> SimulationResult:
+             progress: bool = False, initial: Callable[[np.ndarray], np.ndarray] | None = None,
+             hold: Hold | None = None) -> SimulationResult:
     """Run ``controller`` on the plant ``step(x, u) -> x`` (one period; ``x[:3]`` the positions the
     encoders see, SI) along ``reference``, from rest at the first reference pose: ``initial(q)``
-    when given, else ``x = [q; 0]``.
+    when given, else ``x = [q; 0]``; the controller's memory ``initial_memory(hold)``.
     Deterministic for a given ``seed`` (which only drives the optional encoder noise)."""
     settings = settings or FirmwareSettings()
     check_run(reference, settings, settle)
@@ -78,7 +81,7 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: C
     zero = np.zeros(3)
     previous = encoder_reading(settings, firmware_units(x[:3]), rng)
     filtered = np.zeros(3)
-    memory = controller.initial_memory()
+    memory = controller.initial_memory(hold)
     log = {key: np.empty((n, 3)) for key in ("measured", "position", "command", "pwm")}
     for k in tqdm(range(-n_settle, n), desc=f"simulate {controller.name}", unit="tick", disable=not progress,
                   leave=False):
