@@ -7,15 +7,17 @@
   ``B >= 0``, ``-2 (B/eps)^3 - 3 (B/eps)^2 + 1`` between, and the control is
   ``u = sigma k0 + (1 - sigma) u_nominal`` (eq. 3.4).
 - :func:`cbf_qp` is the modern alternative: the input nearest to the nominal one with
-  ``LfB_i + LgB_i u <= -alpha B_i`` for every barrier and ``|u| <= u_max`` (Clarabel QP); a
-  scenario builds the problem once (:func:`cbf_qp_problem`) and updates its data each step
-  (:func:`solve_cbf_qp`).
+  ``LfB_i + LgB_i u <= -alpha B_i`` for every barrier and ``|u| <= u_max``, a small QP solved
+  exactly by DAQP's dual active-set method; a scenario builds its fixed part once
+  (:func:`cbf_qp_problem`) and adds each step's data (:func:`solve_cbf_qp`).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import daqp
 import numpy as np
 from scipy import sparse
 
@@ -23,6 +25,9 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.safety.barriers import Barrier
 
 LGB_ZERO = 1e-12     # |LgB|^2 below this: the barrier cannot be acted on here (k0 = 0)
+PRIMAL_TOL = 1e-12   # DAQP: a constraint violated by more than this (inputs' units, rows normalised) enters the active set
+DAQP_INF = 1e30      # DAQP reads a bound at or beyond this as none
+DAQP_OPTIMAL, DAQP_INFEASIBLE = 1, -1   # DAQP exit flags
 
 
 @dataclass(frozen=True)
@@ -66,75 +71,72 @@ def blended_control(u_nominal: np.ndarray, terms: BarrierTerms, kappa: float, ep
 
 @dataclass(frozen=True)
 class CbfQp:
-    """The structure of a CBF-QP with ``inputs`` inputs and ``barriers`` barrier rows, built once
-    (a Clarabel solver with fixed sparsity: the barrier rows dense, the box ``|u| <= u_max``);
-    :func:`solve_cbf_qp` writes each step's data into it. Clarabel's presolve and equilibration
-    are off, so that a step solved here is the same, to the last bit, as a solver built afresh
-    from that step's data with these settings."""
+    """The fixed part of a scenario's CBF-QP, in DAQP's form (``min u^T H u / 2 + f^T u`` s.t.
+    ``lower <= u <= upper`` for the box, then ``A u <= upper`` for the barrier rows):
+    ``inputs`` inputs, ``barriers`` barrier rows, the box ``|u| <= u_max``, the Hessian of
+    ``|u - u_nominal|^2``. :func:`solve_cbf_qp` adds each step's data; nothing here changes
+    between steps, so a step solved on it is, bit for bit, :func:`cbf_qp` on that step's data."""
 
-    solver: object          # clarabel.DefaultSolver
     inputs: int
     barriers: int
-    u_max: np.ndarray       # (inputs,)
-
-
-def _settings():
-    import clarabel
-
-    settings = clarabel.DefaultSettings()
-    settings.verbose = False
-    settings.presolve_enable = False        # data updates need it off (the bounds are finite: nothing to remove)
-    settings.equilibrate_enable = False     # scaling fixed by the data of one step would differ from a fresh build
-    return settings
-
-
-def qp_data(u_nominal: np.ndarray, terms: list[BarrierTerms], alpha: float, u_max: np.ndarray):
-    """The data of one step: ``q`` (m,), the nonzeros of ``A`` (column by column: the barrier
-    rows, then +1 and -1 of the box) and ``b``."""
-    m, k = u_nominal.size, len(terms)
-    lg = np.array([t.lg for t in terms], dtype=float).reshape(k, m)
-    values = np.empty((k + 2, m))
-    values[:k], values[k], values[k + 1] = lg, 1.0, -1.0
-    b = np.concatenate([[-t.lf - alpha * t.value for t in terms], u_max, u_max])
-    return -2 * u_nominal, values.ravel(order="F"), b
+    u_max: np.ndarray       # (inputs,), in the inputs' units
+    hessian: np.ndarray     # (inputs, inputs): 2 I
+    lower: np.ndarray       # (inputs + barriers,): -u_max, then none (-DAQP_INF) for the barrier rows
+    sense: np.ndarray       # (inputs + barriers,) DAQP constraint types: 0, inequality, cold start
 
 
 def qp_matrices(u_nominal: np.ndarray, terms: list[BarrierTerms], alpha: float, u_max: np.ndarray):
-    """``(P, q, A, b)`` of ``min u^T P u / 2 + q^T u`` s.t. ``A u <= b`` (Clarabel's form, A in CSC
-    with every barrier entry stored, zeros included)."""
-    m, k = u_nominal.size, len(terms)
-    q, values, b = qp_data(u_nominal, terms, alpha, u_max)
-    indices = np.concatenate([np.r_[np.arange(k), k + j, k + m + j] for j in range(m)])
-    A = sparse.csc_matrix((values, indices, np.arange(m + 1) * (k + 2)), shape=(k + 2 * m, m))
-    return sparse.csc_matrix(2 * np.eye(m)), q, A, b
+    """``(P, q, A, b)`` of ``min u^T P u / 2 + q^T u`` s.t. ``A u <= b``, the standard form any QP
+    solver takes (Clarabel's, A in CSC): the barrier rows, then the box's ``+u`` and ``-u``. Up to
+    the constant ``|u_nominal|^2`` this is the CBF-QP of :func:`solve_cbf_qp`; for cross-checks."""
+    m = u_nominal.size
+    u_max = np.broadcast_to(np.asarray(u_max, dtype=float), (m,))
+    rows = np.array([t.lg for t in terms], dtype=float).reshape(len(terms), m)
+    A = sparse.csc_matrix(np.vstack([rows, np.eye(m), -np.eye(m)]))
+    b = np.concatenate([[-t.lf - alpha * t.value for t in terms], u_max, u_max])
+    return sparse.csc_matrix(2 * np.eye(m)), -2 * u_nominal, A, b
 
 
 def cbf_qp_problem(inputs: int, barriers: int, u_max) -> CbfQp:
     """The CBF-QP structure for a scenario: ``inputs`` inputs, ``barriers`` barriers, bounds
     ``u_max`` (scalar or per input). Built once, solved each step by :func:`solve_cbf_qp`."""
-    import clarabel
-
     u_max = np.broadcast_to(np.asarray(u_max, dtype=float), (inputs,)).copy()
-    placeholder = [BarrierTerms(0.0, 0.0, np.ones(inputs))] * barriers
-    P, q, A, b = qp_matrices(np.zeros(inputs), placeholder, 0.0, u_max)
-    solver = clarabel.DefaultSolver(P, q, A, b, [clarabel.NonnegativeConeT(len(b))], _settings())
-    return CbfQp(solver, inputs, barriers, u_max)
+    if not np.all(u_max >= 0):
+        raise RcmKinError(f"the input bounds u_max must be non-negative, got {u_max}")
+    lower = np.concatenate([-u_max, np.full(barriers, -DAQP_INF)])
+    return CbfQp(inputs, barriers, u_max, 2 * np.eye(inputs), lower, np.zeros(inputs + barriers, dtype=np.intc))
+
+
+def _barrier_rows(u_nominal: np.ndarray, terms: list[BarrierTerms], alpha: float) -> tuple[np.ndarray, np.ndarray]:
+    """``LgB_i u <= -LfB_i - alpha B_i`` as rows ``(k, inputs)`` and bounds ``(k,)``, each row
+    scaled to unit length (the same half-space; DAQP's feasibility tolerance then is a distance
+    in the inputs' units); a row ``LgB_i = 0`` stays as it is: ``0 <= bound``, met or infeasible.
+    Any datum (or ``u_nominal``) NaN or inf: a clear error (the sum is finite exactly then)."""
+    rows = np.array([t.lg for t in terms], dtype=float).reshape(len(terms), u_nominal.size)
+    bounds = np.array([-t.lf - alpha * t.value for t in terms], dtype=float)
+    norms = np.sqrt(np.square(rows).sum(axis=1))
+    if not math.isfinite(float(norms.sum() + bounds.sum() + u_nominal.sum())):
+        raise RcmKinError("the CBF-QP data are not finite here (NaN or inf in u_nominal, B, LfB or LgB)")
+    norms[norms == 0] = 1.0
+    return rows / norms[:, None], bounds / norms
 
 
 def solve_cbf_qp(problem: CbfQp, u_nominal, terms: list[BarrierTerms], alpha: float) -> np.ndarray:
     """``argmin |u - u_nominal|^2`` s.t. ``LfB_i + LgB_i u <= -alpha B_i`` and ``|u_j| <= u_max_j``
-    on the prebuilt ``problem``. Infeasible (the bounds and barriers conflict): a clear error."""
+    on the prebuilt ``problem``, solved exactly by DAQP's dual active-set method (the optimum is
+    the solution of the KKT equations of its active set). Infeasible (the bounds and barriers
+    conflict) or data not finite: a clear error."""
     u_nominal = np.asarray(u_nominal, dtype=float)
-    if u_nominal.size != problem.inputs or len(terms) != problem.barriers:
-        raise RcmKinError(f"this CBF-QP was built for {problem.inputs} inputs and {problem.barriers} barriers, "
-                          f"got {u_nominal.size} and {len(terms)}")
-    q, values, b = qp_data(u_nominal, terms, alpha, problem.u_max)
-    problem.solver.update(q=q, A=values, b=b)
-    solution = problem.solver.solve()
-    if str(solution.status) != "Solved":
-        raise RcmKinError(f"the CBF-QP has no solution here ({solution.status}): the input bounds cannot keep B "
-                          "from growing")
-    return np.array(solution.x)
+    m, k = problem.inputs, problem.barriers
+    if u_nominal.size != m or len(terms) != k:
+        raise RcmKinError(f"this CBF-QP was built for {m} inputs and {k} barriers, got {u_nominal.size} and {len(terms)}")
+    rows, bounds = _barrier_rows(u_nominal, terms, alpha)
+    u, _, exitflag, _ = daqp.solve(problem.hessian, -2 * u_nominal, rows, np.concatenate([problem.u_max, bounds]),
+                                   problem.lower, problem.sense, primal_tol=PRIMAL_TOL)
+    if exitflag != DAQP_OPTIMAL:
+        reason = "infeasible" if exitflag == DAQP_INFEASIBLE else f"DAQP exit flag {exitflag}"
+        raise RcmKinError(f"the CBF-QP has no solution here ({reason}): the input bounds cannot keep B from growing")
+    return u
 
 
 def cbf_qp(u_nominal: np.ndarray, terms: list[BarrierTerms], alpha: float, u_max) -> np.ndarray:
