@@ -27,8 +27,8 @@ if TYPE_CHECKING:
     from rcm_kin.robot import Robot
 
 
-MAX_POSES = 1001 * 1001   # poses of one map: about 0.7 GB (the issue-16 benchmark's 1001 x 1001)
-BYTES_PER_POSE = 720      # peak memory per pose, measured: 300 x 300 poses took 65 MB more than 10 x 10
+MAX_POSES = 1001 * 1001   # poses of one map (the largest benchmarked: bench_gravity.py)
+BYTES_PER_POSE = 140      # peak memory per pose, measured: 1001 x 1001 poses took 135 MB more than 5 x 5
 
 
 def check_map_size(poses: int) -> None:
