@@ -11,7 +11,7 @@ from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.robot import load_robot
 
 EPILOG_TORQUE_MAP = ("example: rcm-kin torque-map psm --roll=-30:30:61 --pitch=-30:30:61 --insertion 0.08 --out maps\n"
-                     "large maps: rcm-kin torque-map psm --roll=-30:30:1001 --pitch=-30:30:1001 --format npz --out maps\n"
+                     "large: rcm-kin torque-map psm --roll=-30:30:1001 --pitch=-30:30:1001 --format npz --out maps\n"
                      "(write negative ranges with =, as argparse reads a leading - as an option)")
 
 

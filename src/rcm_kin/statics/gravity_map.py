@@ -207,6 +207,7 @@ def write_gravity_maps(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg
         return gmap, tables
     from rcm_kin.report.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
 
-    files = [tables[0], effort_heatmaps(gmap, out / "torque_map.png"), thesis_trend_curves(gmap, out / "trend_curves.png"),
-             tables[1], insertion_curves(sweep, out / "insertion_map.png")]
+    files = [tables[0], effort_heatmaps(gmap, out / "torque_map.png"),
+             thesis_trend_curves(gmap, out / "trend_curves.png"), tables[1],
+             insertion_curves(sweep, out / "insertion_map.png")]
     return gmap, files
