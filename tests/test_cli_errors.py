@@ -118,7 +118,7 @@ def test_one_point_torque_map_is_the_gravity_command_at_that_pose(capsys, tmp_pa
      "2,000,001 controller periods; the limit is 200,000"),
     (["simulate", "psm", "--experiment", "sine", "--controller", "p", "--rate", "1e9"], "[1, 100000] Hz"),
     (["schedule", "psm", "--check-points", "100000", "--out", "g"], "at most 201"),
-    (["report", "--out", "r", "--map-points", "100000"], "at most 1,000"),
+    (["report", "--out", "r", "--map-points", "100000"], "at most 1,001"),
     (["greybox", "log.csv", "--joint", "roll", "--samples", "10000000000"], "at most 100,000"),
 ])
 def test_huge_work_is_refused_before_it_starts(capsys, tmp_path, monkeypatch, argv, message):

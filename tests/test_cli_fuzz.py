@@ -140,6 +140,7 @@ def specs(files: dict[str, list[str]]) -> dict[str, dict]:
                                                 "0:1e300:3", "-1e300:1e300:3", "0:1:0"]),
                                "--pitch": words(["-30:30:4"], ["0:0:1", "5:5:1", "0:1:100000000", "::"]),
                                "--insertion": numbers("0.08", "0.05"), "--no-counterweights": None,
+                               "--format": words(["csv", "npz"], ["parquet", "", "CSV"]), "--no-figures": None,
                                "--json": None, **params}},
         "calibrate": {"argv": ["calibrate"], "pos": [log], "slow": True, "guard": "--params={bad_params}",
                       "opt": {"--out": files["out_file"], "--json": None, **params}},

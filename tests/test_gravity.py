@@ -14,6 +14,7 @@ from rcm_kin.closure import constrained
 from rcm_kin.statics.counterweights import design_counterweights, workspace_grid
 from rcm_kin.dynamics.drive import DriveParameters, JointDrive, drive_effort, load_drive_parameters, pwm_to_torque
 from rcm_kin.dynamics.gravity import gravity_batch, gravity_torque, point_mass_gravity_batch
+from rcm_kin.csv_table import format_rows_numpy
 from rcm_kin.statics.gravity_map import gravity_map, parse_range
 
 TOL = 1e-9
@@ -218,6 +219,45 @@ def test_torque_map_cli(tmp_path, capsys):
         assert (tmp_path / name).stat().st_size > 0
     rows = (tmp_path / "torque_map.csv").read_text().splitlines()
     assert len(rows) == 36 and rows[0].startswith("roll_deg,pitch_deg,insertion_m,tau_roll")
+
+
+def test_torque_map_npz_holds_the_csv_numbers(tmp_path, capsys):
+    """--format npz: one array per CSV column, rows in the CSV's order, at full precision: the CSV
+    is exactly those numbers written by the NumPy formatter (the command's CSV uses the compiled
+    one), and within the 9-decimal rounding of them read back."""
+    grid = ["--roll=-30:30:7", "--pitch=-20:25:5", "--insertion", "0.1", "--json"]
+    assert main(["torque-map", "psm", *grid, "--out", str(tmp_path / "csv")]) == 0
+    assert main(["torque-map", "psm", *grid, "--out", str(tmp_path / "npz"), "--format", "npz", "--no-figures"]) == 0
+    out = json.loads(capsys.readouterr().out.splitlines()[-1])
+    assert out == {"files": [str(tmp_path / "npz" / "torque_map.npz"), str(tmp_path / "npz" / "insertion_map.npz")],
+                   "poses": 35}
+    assert sorted(p.name for p in (tmp_path / "npz").iterdir()) == ["insertion_map.npz", "torque_map.npz"]
+    for name, poses in (("torque_map", 35), ("insertion_map", 6 * 81)):
+        text = (tmp_path / "csv" / f"{name}.csv").read_bytes()
+        header = text.split(b"\r\n", 1)[0].decode().split(",")
+        with np.load(tmp_path / "npz" / f"{name}.npz") as npz:
+            assert npz.files == header
+            table = np.column_stack([npz[c] for c in header])
+        assert table.shape == (poses, 12) and table.dtype == float
+        assert text == ",".join(header).encode() + b"\r\n" + format_rows_numpy(table)
+        back = np.array([[float(v) for v in line.split(",")] for line in text.decode().splitlines()[1:]])
+        assert np.all(np.abs(back - table) <= 0.5e-9 + 4 * np.finfo(float).eps * np.abs(table))
+    # the npz's numbers are the map's own (full precision): pose 3 of the first pitch row
+    with np.load(tmp_path / "npz" / "torque_map.npz") as npz:
+        assert (npz["roll_deg"][3], npz["pitch_deg"][3], npz["insertion_m"][3]) == (0.0, -20.0, 0.1)
+        tau = gravity_batch(load_robot("psm"), np.array([[0.0, np.radians(-20.0), 0.1, 0, 0, 0, 0]]),
+                            load_drive_parameters().gravity_offsets)[0]
+        np.testing.assert_allclose([npz[f"tau_{j}"][3] for j in ("roll", "pitch", "insertion")], tau[:3],
+                                   rtol=0, atol=1e-12)
+
+
+def test_torque_map_refuses_an_unknown_table_format(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["torque-map", "psm", "--roll=0:10:2", "--format", "parquet", "--out", str(tmp_path / "m")])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and err.count("\n") == 1
+    assert err.startswith("error: argument --format: invalid choice: 'parquet' (choose from 'csv', 'npz')")
+    assert not (tmp_path / "m").exists()
 
 
 def test_calibration_reproduces_measured_holding(shared_data, tmp_path):

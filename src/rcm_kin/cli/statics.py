@@ -11,6 +11,7 @@ from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.robot import load_robot
 
 EPILOG_TORQUE_MAP = ("example: rcm-kin torque-map psm --roll=-30:30:61 --pitch=-30:30:61 --insertion 0.08 --out maps\n"
+                     "large: rcm-kin torque-map psm --roll=-30:30:1001 --pitch=-30:30:1001 --format npz --out maps\n"
                      "(write negative ranges with =, as argparse reads a leading - as an option)")
 
 
@@ -33,12 +34,16 @@ def add_torque_map(sub) -> None:
                    help="roll grid LO:HI:N in degrees, N >= 2 (or LO:LO:1, one value; default -30:30:61)")
     p.add_argument("--pitch", default="-30:30:61",
                    help="pitch grid LO:HI:N in degrees, N >= 2 (or LO:LO:1; default -30:30:61; at most "
-                        "1,000,000 poses in all)")
+                        "1001 x 1001 poses in all)")
     p.add_argument("--insertion", type=finite(unit="m"), default=HOME_INSERTION,
                    help=f"insertion in m (default {HOME_INSERTION:g})")
     p.add_argument("--no-counterweights", action="store_true", help="remove the counterweights' mass")
     add_params(p)
     p.add_argument("--out", required=True, type=path_text, help="output folder (created)")
+    p.add_argument("--format", choices=("csv", "npz"), default="csv",
+                   help="tables as csv (text, 9 decimals; default) or npz (NumPy, full precision, one array per "
+                        "CSV column: np.load; fastest for large maps)")
+    p.add_argument("--no-figures", action="store_true", help="write the tables only, not the three PNG figures")
     add_json(p, '{"files": [...], "poses": N}')
     p.set_defaults(func=cmd_torque_map)
 
@@ -90,7 +95,7 @@ def cmd_torque_map(args) -> None:
     for corner in ((roll[0], pitch[0]), (roll[-1], pitch[-1])):
         robot.check_limits(robot.check_q([*np.radians(corner), args.insertion], allow_short=True))
     gmap, files = write_gravity_maps(robot, drive, roll, pitch, args.insertion, output_folder(args.out),
-                                     progress=progress_wanted(args))
+                                     progress=progress_wanted(args), table=args.format, figures=not args.no_figures)
     payload = {"files": [str(f) for f in files], "poses": int(gmap.effort.tau[..., 0].size)}
     emit(args, payload, "\n".join(f"wrote {f}" for f in files))
 

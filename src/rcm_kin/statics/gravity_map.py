@@ -3,7 +3,7 @@
 Grids are roll x pitch at one insertion, or a sweep of insertion; every pose is evaluated by
 the driven model's gravity compiled to C (:func:`driven_gravity`; the same numbers as the
 vectorised :func:`rcm_kin.dynamics.gravity.gravity_batch`) with the calibrated gravity offsets,
-then through the drive model. Angles in the CSV are degrees (for people);
+then through the drive model. Angles in the tables are degrees (for people);
 torques N m (insertion N), voltage V, PWM counts with the hardware sign.
 """
 
@@ -27,8 +27,8 @@ if TYPE_CHECKING:
     from rcm_kin.robot import Robot
 
 
-MAX_POSES = 1_000_000     # poses of one map: about 0.7 GB and two minutes of work
-BYTES_PER_POSE = 720      # peak memory per pose, measured: 300 x 300 poses took 65 MB more than 10 x 10
+MAX_POSES = 1001 * 1001   # poses of one map (the largest benchmarked: bench_gravity.py)
+BYTES_PER_POSE = 140      # peak memory per pose, measured: 1001 x 1001 poses took 135 MB more than 5 x 5
 
 
 def check_map_size(poses: int) -> None:
@@ -36,7 +36,7 @@ def check_map_size(poses: int) -> None:
     would need."""
     if poses > MAX_POSES:
         raise WorkLimitError(f"a map of {poses:,} poses would need about {poses * BYTES_PER_POSE / 1e9:.3g} GB; "
-                          f"the limit is {MAX_POSES:,} poses (e.g. 1000 x 1000): use fewer points per axis")
+                          f"the limit is {MAX_POSES:,} poses (e.g. 1001 x 1001): use fewer points per axis")
 
 
 @dataclass(frozen=True)
@@ -143,35 +143,71 @@ def _compiled_gravity(robot: Robot, offsets: tuple) -> ca.Function:
     return compiled(driven_gravity_function(robot, {link: np.array(h) for link, h in offsets}))
 
 
+def table_header() -> list[str]:
+    """Column names of a map's table (CSV header, .npz array names), in order."""
+    return ["roll_deg", "pitch_deg", "insertion_m"] + [f"{q}_{j}" for q in ("tau", "voltage", "pwm") for j in DRIVEN]
+
+
+def table_rows(gmap: GravityMap, start: int, stop: int) -> np.ndarray:
+    """Rows ``start:stop`` of the map's table (:func:`table_header` columns; one row per pose,
+    pitch slowest, insertion fastest)."""
+    e = gmap.effort
+    p, r, i = np.unravel_index(np.arange(start, min(stop, e.tau[..., 0].size)), e.tau.shape[:3])
+    return np.column_stack([gmap.roll_deg[r], gmap.pitch_deg[p], gmap.insertion[i]]
+                           + [x.reshape(-1, 3)[start:stop] for x in (e.tau, e.voltage, e.pwm)])
+
+
 def write_csv(gmap: GravityMap, path: str | Path, block: int = 1 << 14) -> Path:
-    """One row per pose: angles, insertion, then tau, voltage and PWM of each driven joint (9
-    decimals, :mod:`rcm_kin.csv_table`), written in blocks of ``block`` rows (pitch slowest,
-    insertion fastest)."""
-    header = ["roll_deg", "pitch_deg", "insertion_m"] + [f"{q}_{j}" for q in ("tau", "voltage", "pwm") for j in DRIVEN]
+    """The map's table as CSV (9 decimals, :mod:`rcm_kin.csv_table`), written in blocks of
+    ``block`` rows."""
+    poses = gmap.effort.tau[..., 0].size
+    return write_csv_blocks(path, table_header(), (table_rows(gmap, i, i + block) for i in range(0, poses, block)))
+
+
+def write_npz(gmap: GravityMap, path: str | Path) -> Path:
+    """The map's table as an uncompressed NumPy ``.npz``: one float64 array (poses,) per column
+    of :func:`table_header`, rows in the CSV's order, at full precision (the CSV rounds to 9
+    decimals). ``dict(np.load(path))`` is the table (e.g. for ``pandas.DataFrame``). The effort
+    columns are written from views of the map, the pose columns made one at a time."""
+    path = Path(path)
     e = gmap.effort
     shape = e.tau.shape[:3]
-    efforts = [x.reshape(-1, 3) for x in (e.tau, e.voltage, e.pwm)]
+    axes = {"roll_deg": (gmap.roll_deg, 1), "pitch_deg": (gmap.pitch_deg, 0), "insertion_m": (gmap.insertion, 2)}
+    columns = {name: np.broadcast_to(values.reshape([-1 if k == axis else 1 for k in range(3)]), shape).ravel()
+               for name, (values, axis) in axes.items()}
+    columns.update({f"{q}_{j}": getattr(e, q).reshape(-1, 3)[:, k]
+                    for q in ("tau", "voltage", "pwm") for k, j in enumerate(DRIVEN)})
+    try:
+        np.savez(path, **{name: columns[name] for name in table_header()})
+    except OSError as exc:
+        raise RcmKinError(f"cannot write {path}: {exc.strerror}") from None
+    return path
 
-    def rows(start: int) -> np.ndarray:
-        p, r, i = np.unravel_index(np.arange(start, min(start + block, efforts[0].shape[0])), shape)
-        return np.column_stack([gmap.roll_deg[r], gmap.pitch_deg[p], gmap.insertion[i]]
-                               + [x[start:start + block] for x in efforts])
-    return write_csv_blocks(path, header, (rows(i) for i in range(0, efforts[0].shape[0], block)))
+
+TABLE_WRITERS = {"csv": write_csv, "npz": write_npz}     # table format -> writer (file suffix = the key)
 
 
 def write_gravity_maps(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg, insertion: float, out: Path,
                        progress: bool = False, sweep_roll_deg=(0.0, 20.0),
-                       sweep_pitch_deg=(-20.0, 0.0, 20.0)) -> tuple[GravityMap, list[Path]]:
+                       sweep_pitch_deg=(-20.0, 0.0, 20.0), table: str = "csv",
+                       figures: bool = True) -> tuple[GravityMap, list[Path]]:
     """The roll x pitch map at one insertion (m) and an insertion sweep over the whole insertion
     range at the poses ``sweep_roll_deg`` x ``sweep_pitch_deg`` (at roll = pitch = 0 the shaft
-    hangs through both axes and nothing depends on the insertion), as CSV and figures in folder
-    ``out``: torque_map.csv/.png, trend_curves.png, insertion_map.csv/.png."""
-    from rcm_kin.report.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
-
+    hangs through both axes and nothing depends on the insertion), in folder ``out``: their
+    tables torque_map.csv and insertion_map.csv (``table`` "npz": .npz, see :func:`write_npz`)
+    and, with ``figures``, torque_map.png, trend_curves.png, insertion_map.png."""
+    if table not in TABLE_WRITERS:
+        raise RcmKinError(f"table format '{table}': use one of {', '.join(TABLE_WRITERS)}")
+    write_table = TABLE_WRITERS[table]
     gmap = gravity_map(robot, drive, roll_deg, pitch_deg, [insertion], progress=progress)
     i = robot.actuated.index("insertion")
     sweep = gravity_map(robot, drive, sweep_roll_deg, sweep_pitch_deg, np.linspace(robot.lower[i], robot.upper[i], 81))
-    files = [write_csv(gmap, out / "torque_map.csv"), effort_heatmaps(gmap, out / "torque_map.png"),
-             thesis_trend_curves(gmap, out / "trend_curves.png"),
-             write_csv(sweep, out / "insertion_map.csv"), insertion_curves(sweep, out / "insertion_map.png")]
+    tables = [write_table(gmap, out / f"torque_map.{table}"), write_table(sweep, out / f"insertion_map.{table}")]
+    if not figures:
+        return gmap, tables
+    from rcm_kin.report.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
+
+    files = [tables[0], effort_heatmaps(gmap, out / "torque_map.png"),
+             thesis_trend_curves(gmap, out / "trend_curves.png"), tables[1],
+             insertion_curves(sweep, out / "insertion_map.png")]
     return gmap, files
