@@ -1,0 +1,62 @@
+"""The one fast pitch record: an upper bound on the pitch's damping at speed, from the runaway
+at the end of the PWM ramp log.
+
+    python analysis/pitch_runaway.py ../shared/data/psm-sysid/single-axis/pitch_speed_ramp_down_response.csv
+
+The log ramps the pitch PWM open loop (0, -1, -2, ... counts, one step per ~0.1 s). Near -115
+counts the pitch breaks away and swings through about 70 deg to its far stop, peaking at about
+130 deg/s, four times the tracking sinusoid's 31 deg/s and ten times anything in the closed-loop
+records. Its position column holds raw encoder counts (data README); a negative PWM raises the
+pitch (hardware sign -1), so the angle is ``-counts / (2000 * 13.333 / 360)`` deg.
+
+At the speed peak the acceleration passes through zero, so the drive torque ``|k_u u|`` balances
+damping, gravity and friction there. Gravity opposes a rising pitch (its holding PWM is negative
+across the range) and Coulomb friction opposes motion, so ``(b_emf + b) v_peak <= |k_u u|``: an
+upper bound on the viscous friction ``b`` beyond the motor's back-EMF, whatever the unknown
+absolute angle (the counts start where the arm was powered on).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+
+from rcm_kin.dynamics.drive import DRIVEN, load_drive_parameters  # noqa: E402
+from rcm_kin.dynamics.state_space import drive_constants  # noqa: E402
+from rcm_kin.hardware import ENCODER_COUNT  # noqa: E402
+from rcm_kin.identification.telemetry import load_telemetry  # noqa: E402
+
+
+def damping_bound(path) -> dict:
+    """Speed peak (deg/s), PWM there (counts) and the bound on the viscous friction (N m s/rad)."""
+    log = load_telemetry(path)
+    angle = -log.position["pitch"] * ENCODER_COUNT[DRIVEN.index("pitch")]     # counts -> deg
+    t, u = log.time, log.pwm["pitch"]
+    speed = np.gradient(angle, t)                                       # central differences
+    k = int(np.argmax(speed))
+    params = load_drive_parameters()
+    drive, i = drive_constants(params), DRIVEN.index("pitch")
+    emf = drive.damping[i] - params["pitch"].viscous
+    v_peak = np.radians(speed[k])
+    bound = abs(drive.input_gain[i] * u[k]) / v_peak - emf
+    return {"time_s": float(t[k]), "speed_deg_s": float(speed[k]), "pwm": float(u[k]),
+            "back_emf": float(emf), "viscous_bound": float(bound),
+            "travel_deg": float(np.ptp(angle))}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("log", help="pitch_speed_ramp_down_response.csv")
+    b = damping_bound(parser.parse_args().log)
+    print(f"speed peak {b['speed_deg_s']:.0f} deg/s at t = {b['time_s']:.2f} s under {b['pwm']:.0f} PWM "
+          f"(travel {b['travel_deg']:.1f} deg)")
+    print(f"back-EMF damping {b['back_emf']:.3f} N m s/rad; viscous friction beyond it <= "
+          f"{b['viscous_bound']:.2f} N m s/rad")
+
+
+if __name__ == "__main__":
+    main()
