@@ -184,9 +184,9 @@ def test_batches_cover_the_samples_in_order():
 # --- the simulation task ---------------------------------------------------------------------------
 
 def test_a_sample_is_the_simulator_on_the_drawn_set(study, serial):
-    """Sample 0 against ``run_experiment`` with the drawn parameters and the nominal schedule."""
+    """Sample 0 against the simulator run on the drawn parameters with the nominal schedule."""
     from rcm_kin.simulation.controllers import make_controller
-    from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule
+    from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule, start_hold
     from rcm_kin.simulation.loop import simulate, tracking_metrics
     from rcm_kin.simulation.plant import drive_train_plant
     from rcm_kin.robot import load_robot
@@ -195,8 +195,9 @@ def test_a_sample_is_the_simulator_on_the_drawn_set(study, serial):
     drawn = with_values(study.params, study.uncertain, draw(study.uncertain, seed))
     plant = drive_train_plant(load_robot("psm"), drawn, 0.0025)
     _, schedule = psm_plant_and_schedule(study.params)
-    run = simulate(plant.step, make_controller("scheduled", schedule), experiment_reference("sine", 0.0025, DURATION),
-                   initial=plant.initial)
+    reference = experiment_reference("sine", 0.0025, DURATION)
+    run = simulate(plant.step, make_controller("scheduled", schedule), reference, initial=plant.initial,
+                   hold=start_hold(reference, drawn))            # from the drawn robot's own steady hold
     metrics = tracking_metrics(run)
     outcome = serial.outcomes[0]
     assert outcome.max_error_deg[1] == pytest.approx([metrics["roll"].max_error_deg, metrics["pitch"].max_error_deg],

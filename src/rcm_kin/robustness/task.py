@@ -35,16 +35,16 @@ from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.stability import damping_ratios, firmware_loop_matrix
 from rcm_kin.control.thesis_reference import K_PITCH, K_ROLL
 from rcm_kin.dynamics.drive import DriveParameters
-from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
+from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics, holding_pwm
 from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS
 from rcm_kin.robot import load_robot
 from rcm_kin.robustness.sampling import Uncertain, draw, with_values
-from rcm_kin.simulation.controllers import CONTROLLERS, make_controller
+from rcm_kin.simulation.controllers import CONTROLLERS, Hold, make_controller
 from rcm_kin.simulation.experiments import (SmoothPlant, check_in_limits, experiment_reference,
                                             psm_plant_and_schedule)
 from rcm_kin.simulation.firmware import FirmwareSettings
-from rcm_kin.simulation.loop import AXES, SimulationResult, simulate, tracking_metrics
+from rcm_kin.simulation.loop import AXES, SimulationResult, firmware_units, simulate, tracking_metrics
 from rcm_kin.simulation.plant import drive_train_plant, period_map
 
 SURVEY_POINTS = 5       # per axis of the stability grid
@@ -179,11 +179,14 @@ def finite_steps(step):
     return checked
 
 
-def closed_loop_run(plant, controller, reference, settings: FirmwareSettings) -> SimulationResult | None:
-    """``controller`` on ``plant`` (``step``, ``initial``) along ``reference``; None when the run is
-    unstable: its state diverged (left the finite numbers) or its joints left their range."""
+def closed_loop_run(plant, controller, reference, settings: FirmwareSettings,
+                    hold: Hold | None = None) -> SimulationResult | None:
+    """``controller`` on ``plant`` (``step``, ``initial``) along ``reference``, from ``hold`` (the
+    steady hold of the first pose); None when the run is unstable: its state diverged (left the
+    finite numbers) or its joints left their range."""
     try:
-        result = simulate(finite_steps(plant.step), controller, reference, settings, initial=plant.initial)
+        result = simulate(finite_steps(plant.step), controller, reference, settings, initial=plant.initial,
+                          hold=hold)
         check_in_limits(result)
     except (Diverged, JointLimitError):
         return None
@@ -199,12 +202,13 @@ def run_sample(study: Study, index: int, seed: np.random.SeedSequence) -> Sample
     params = with_values(study.params, study.uncertain, values)
     plant = sample_plant(params, settings.period)
     model = driven_dynamics(load_robot("psm"), params, coulomb=False)
+    hold = Hold(firmware_units(reference.position[0]), holding_pwm(model, reference.position[0]))
     n = len(study.controllers)
     max_error, mean_error = np.full((n, 2), np.nan), np.full((n, 2), np.nan)
     saturated, unstable = np.zeros((n, 2), dtype=bool), np.zeros(n, dtype=bool)
     max_real, radius, damping = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
     for c, name in enumerate(study.controllers):
-        result = closed_loop_run(plant, make_controller(name, schedule), reference, settings)
+        result = closed_loop_run(plant, make_controller(name, schedule), reference, settings, hold)
         if result is None:
             unstable[c] = True
         else:

@@ -181,7 +181,7 @@ def psm_run(filter: str = "blend", trajectory=None, controller: str = "scheduled
     from rcm_kin.kinematics.teleop import default_teleop_map, psm_targets
     from rcm_kin.robot import load_robot
     from rcm_kin.simulation.controllers import make_controller
-    from rcm_kin.simulation.experiments import psm_plant_and_schedule
+    from rcm_kin.simulation.experiments import psm_plant_and_schedule, start_hold
     from rcm_kin.simulation.firmware import FirmwareSettings
     from rcm_kin.simulation.loop import si_units, simulate
     from rcm_kin.simulation.references import Reference, load_mtm_trajectory
@@ -212,7 +212,8 @@ def psm_run(filter: str = "blend", trajectory=None, controller: str = "scheduled
     spline = CubicSpline(reference.time, joints)
     ref = Reference(reference.time, joints, spline(reference.time, 1), spline(reference.time, 2))
     plant, schedule = psm_plant_and_schedule(period=T)
-    run = simulate(plant.step, make_controller(controller, schedule), ref, settings, initial=plant.initial)
+    run = simulate(plant.step, make_controller(controller, schedule), ref, settings, initial=plant.initial,
+                   hold=start_hold(ref))
     tip = []
     for true in si_units(run.position):       # the simulated robot's true joints, not the encoder counts
         q[:3] = true
