@@ -16,15 +16,14 @@ import functools
 import hashlib
 import platform
 import shutil
-import subprocess
 import sys
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.symbolic.compiled import cache_folder, compiler_command
+from rcm_kin.errors import RcmKinError
+from rcm_kin.symbolic.compiled import build_library, compiler_command
 
 COMPILE_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared")
 NAME = "rcm_csv_format_rows"
@@ -100,7 +99,7 @@ def _formatter(command: tuple[str, ...]) -> Callable[[np.ndarray], bytes] | None
         except OSError:                         # a truncated or corrupt cached file: build it once more
             path.unlink(missing_ok=True)
             library = ctypes.CDLL(str(_build(list(command))))
-    except (OSError, RuntimeError) as exc:
+    except (OSError, RcmKinError) as exc:
         return _fallback(f"the CSV formatter was not built ({exc})")
     function = getattr(library, NAME)
     function.argtypes = (ctypes.c_void_p, ctypes.c_size_t, ctypes.c_size_t, ctypes.c_void_p)
@@ -119,25 +118,10 @@ def _fallback(reason: str) -> None:
 
 
 def _build(command: list[str]) -> Path:
-    """The cached shared library, compiled first if absent (written atomically, so concurrent
-    processes never load a half-written file). Raises RuntimeError when the compiler fails."""
+    """The cached shared library, compiled first if absent (:func:`build_library`), keyed by the
+    source, the compiler command and the machine."""
     digest = hashlib.sha256()
     for part in (SOURCE, " ".join(command + list(COMPILE_FLAGS)), platform.system(), platform.machine()):
         digest.update(part.encode())
         digest.update(b"\0")
-    folder = cache_folder()
-    library = folder / f"{NAME}_{digest.hexdigest()[:32]}.so"
-    if library.exists():
-        return library
-    folder.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=folder) as work:
-        source = Path(work) / f"{NAME}.c"
-        source.write_text(SOURCE)
-        target = Path(work) / library.name
-        run = subprocess.run([*command, *COMPILE_FLAGS, str(source), "-o", str(target), "-lm"],
-                             capture_output=True, text=True)
-        if run.returncode != 0:
-            first = (run.stderr.strip().splitlines() or ["no message"])[0]
-            raise RuntimeError(f"{command[0]} failed: {first}")
-        target.replace(library)
-    return library
+    return build_library(NAME, digest.hexdigest(), SOURCE, command, COMPILE_FLAGS)

@@ -132,25 +132,31 @@ def _load(name: str, library: Path) -> ca.Function:
 
 
 def _build(fn: ca.Function, command: list[str]) -> Path:
-    """The cached shared library of ``fn``, compiled first if absent (written atomically, so
-    concurrent processes never load a half-written file)."""
-    key = function_key(fn, command)
+    """The cached shared library of ``fn``, compiled first if absent."""
+    generator = ca.CodeGenerator(f"{fn.name()}.c", {"with_header": False})
+    generator.add(_merged(fn))
+    return build_library(fn.name(), function_key(fn, command), generator.dump(), command)
+
+
+def build_library(name: str, key: str, source: str, command: list[str],
+                  flags: tuple[str, ...] = COMPILE_FLAGS) -> Path:
+    """The shared library ``name_<key>.so`` in the cache folder, compiled from the C ``source``
+    with ``command`` and ``flags`` first if absent (written atomically, so concurrent processes never load a
+    half-written file). A compiler failure is an :class:`RcmKinError` with its first line."""
     folder = cache_folder()
-    library = folder / f"{fn.name()}_{key[:32]}.so"
+    library = folder / f"{name}_{key[:32]}.so"
     if library.exists():
         return library
     folder.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=folder) as work:
-        source = Path(work) / f"{fn.name()}.c"
-        generator = ca.CodeGenerator(source.name, {"with_header": False})
-        generator.add(_merged(fn))
-        source.write_text(generator.dump())
+        path = Path(work) / f"{name}.c"
+        path.write_text(source)
         target = Path(work) / library.name
-        run = subprocess.run([*command, *COMPILE_FLAGS, str(source), "-o", str(target), "-lm"],
+        run = subprocess.run([*command, *flags, str(path), "-o", str(target), "-lm"],
                              capture_output=True, text=True)
         if run.returncode != 0:
             first = (run.stderr.strip().splitlines() or ["no message"])[0]
-            raise RcmKinError(f"compiling {fn.name()} with {command[0]} failed: {first}")
+            raise RcmKinError(f"compiling {name} with {command[0]} failed: {first}")
         target.replace(library)
     return library
 
