@@ -111,3 +111,23 @@ def test_spread_samples():
     assert np.array_equal(figures.spread_samples(7, 4), [0, 2, 4, 6])
     picked = figures.spread_samples(1001, 301)
     assert picked.size == 301 and picked[0] == 0 and picked[-1] == 1000 and np.all(np.diff(picked) >= 3)
+
+
+def test_contours_on_samples_keep_the_whole_grids_levels_and_colours(monkeypatch):
+    """A field whose peak lies between the samples (41 poses per axis traced on 11): the levels and
+    the colour limits are the whole grid's, not the samples' (which would be lower)."""
+    from rcm_kin.dynamics.drive import DriveEffort
+    from rcm_kin.statics.gravity_map import GravityMap
+
+    grid = np.linspace(-30, 30, 41)
+    field = np.add.outer(np.sin(np.radians(3 * grid)), np.cos(np.radians(2 * grid)))
+    field[1, 2] = 9.0                                         # pose (1, 2): not one of the samples
+    stack = np.repeat(field[:, :, None, None], 3, axis=3)
+    gmap = GravityMap(grid, grid, np.array([0.08]), DriveEffort(*([stack] * 5), stack > 0))
+    fig, traced = drawn(monkeypatch, gmap, contour_samples=11)
+    for ax, (x, y, z), _, _ in panels(fig, traced):
+        assert x.size == y.size == 11 and z.max() < 3.0
+        assert np.array_equal(ax.collections[0].levels, plain_contour(grid, grid, field).levels)
+        assert not np.array_equal(ax.collections[0].levels, plain_contour(x, y, z).levels)
+        assert ax.images[0].get_clim() == (-9.0, 9.0)
+    figures.plt.close(fig)
