@@ -20,6 +20,7 @@ from rcm_kin.errors import RcmKinError  # noqa: E402
 # line styles that stay apart when curves coincide (e.g. roll -15 and +15 by symmetry)
 STYLES = ({"ls": "-", "marker": "o", "ms": 4}, {"ls": "-", "lw": 2.4, "alpha": 0.7},
           {"ls": "--", "marker": "x", "ms": 6}, {"ls": ":", "marker": "^", "ms": 4}, {"ls": "-."})
+IMAGE_SAMPLES = 401        # poses per axis a heat map's image is drawn from at least (or all of them)
 CONTOUR_SAMPLES = 301      # poses per axis a heat map's contour lines are traced on at most
 
 
@@ -61,21 +62,26 @@ def prediction_figure(time, measured, predicted, path: str | Path, title: str = 
     return _save(fig, path)
 
 
-def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0, contour_samples: int = CONTOUR_SAMPLES) -> Path:
-    """PWM and voltage heat maps of roll and pitch over the roll x pitch grid at one insertion: the
-    image is the whole grid; its contour lines (9 levels, matplotlib's choice over the whole grid's
-    range) are traced on at most ``contour_samples`` evenly spread poses per axis, the first and
-    last included (a panel is about 400 pixels wide, so finer grids look the same; tests/test_gravity.py)."""
+def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0, image_samples: int = IMAGE_SAMPLES,
+                    contour_samples: int = CONTOUR_SAMPLES) -> Path:
+    """PWM and voltage heat maps of roll and pitch over the roll x pitch grid at one insertion. A
+    panel is about 400 pixels wide, so a finer grid is drawn from samples of it that look the same
+    (tests/test_heatmap_figure.py): the image from every k-th pose (:func:`image_stride`, at least
+    ``image_samples`` per axis, both ends kept), the contour lines (9 levels, matplotlib's choice
+    over the whole grid's range) traced on at most ``contour_samples`` evenly spread poses per axis
+    (:func:`spread_samples`); the colour scale is the whole grid's."""
     e = gmap.effort
     fig, axes = plt.subplots(2, 2, figsize=(10, 8), constrained_layout=True)
     extent = [*_span(gmap.roll_deg), *_span(gmap.pitch_deg)]
     rows, cols = (spread_samples(n, contour_samples) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
+    pixels = tuple(slice(None, None, image_stride(n, image_samples)) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
     for col, (joint, k) in enumerate((("roll", 0), ("pitch", 1))):
         for row, (quantity, unit) in enumerate((("pwm", "counts"), ("voltage", "V"))):
             data = getattr(e, quantity)[:, :, insertion_index, k]
             ax = axes[row, col]
             limit = np.abs(data).max()
-            im = ax.imshow(data, origin="lower", extent=extent, aspect="auto", cmap="coolwarm", vmin=-limit, vmax=limit)
+            im = ax.imshow(data[pixels], origin="lower", extent=extent, aspect="auto", cmap="coolwarm",
+                           vmin=-limit, vmax=limit)
             if min(data.shape) >= 2:                 # a 1-point axis has no contours
                 ax.contour(gmap.roll_deg[cols], gmap.pitch_deg[rows], data[np.ix_(rows, cols)], colors="k",
                            linewidths=0.5, levels=contour_levels(data, 9))
@@ -84,6 +90,12 @@ def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0, contour_sa
     fig.suptitle(f"Holding effort at insertion {gmap.insertion[insertion_index] * 1e3:.0f} mm "
                  "(PWM: hardware sign, positive decreases the angle)")
     return _save(fig, path)
+
+
+def image_stride(n: int, least: int) -> int:
+    """The largest stride k that samples ``n`` poses as 0, k, 2k, ..., n - 1 (both ends, so the
+    image spans the whole grid) in at least ``least`` poses: 1 (every pose) when there is none."""
+    return max((k for k in range(1, n) if (n - 1) % k == 0 and (n - 1) // k + 1 >= least), default=1)
 
 
 def spread_samples(n: int, most: int) -> np.ndarray:
