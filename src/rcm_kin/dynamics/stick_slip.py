@@ -37,11 +37,13 @@ tests check a block under Coulomb friction against its exact stopping time and p
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
+
+from rcm_kin.dynamics.axis_friction import AxisFriction
 
 if TYPE_CHECKING:
     from rcm_kin.dynamics.state_space import DrivenDynamics
@@ -50,31 +52,6 @@ TERMS = ("stiction", "presliding", "two_mass")
 SUBSTEP = 2.5e-4   # s: integration step
 COUPLING_SWEEPS = 4   # block Gauss-Seidel sweeps of the motor-cable-link step: each contracts the coupling
                       # error by h^2 k_c / (J_m + h^2 k_c) x h^2 k_c / M (< 0.03 up to k_c = 1e6 N m/rad)
-
-
-@dataclass(frozen=True)
-class AxisFriction:
-    """Identified drive-train parameters of one axis (joint-referred SI; PWM in counts)."""
-
-    extra_inertia: float = 0.0         # kg m^2 the CAD lacks, on the link side
-    viscous: float = 0.0               # N m s/rad, link side (back-EMF damping is the drive's)
-    coulomb: float = 0.0               # N m, link side, sliding
-    static: float = 0.0                # N m, link side, break-away (below coulomb: taken as coulomb)
-    stribeck_velocity: float = 0.01    # rad/s
-    presliding_stiffness: float = 0.0  # N m/rad at angle 0
-    presliding_slope: float = 0.0      # 1/rad: k_p(q) = k_p0 exp(slope q)
-    presliding_force: float = 0.0      # N m: where the presliding spring slips
-    cable_stiffness: float = 0.0       # N m/rad; 0: rigid drive (one body)
-    cable_damping: float = 0.0         # N m s/rad
-    motor_coulomb: float = 0.0         # N m (joint-referred)
-    motor_viscous: float = 0.0         # N m s/rad (joint-referred), beyond back-EMF
-
-    def vector(self) -> np.ndarray:
-        """The parameters in field order, as the integration kernels take them."""
-        return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
-
-    def as_dict(self) -> dict:
-        return asdict(self)
 
 
 NAMES = tuple(f.name for f in fields(AxisFriction))
