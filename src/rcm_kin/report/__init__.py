@@ -74,12 +74,12 @@ class JobResult:
 
 def report_jobs(out: Path, data, map_points: int) -> list[Job]:
     """The report's independent pieces, the longest first so that the pool's workers finish
-    together (each worker takes the next piece when it is free). Seconds of one piece alone on
-    this 2-core machine (``benchmarks/bench_report.py``): robustness 3.3, tracking 2.6 per
-    experiment, safety's PSM teleoperation 2.4, gain schedule 2.2, safety's linear scenarios 2.0
-    and certificates 1.9, effort maps 1.8, MuJoCo 1.1, robot views 0.9, models 0.1. The pieces
-    that need the nominal gain schedule design it once per worker
-    (:func:`rcm_kin.simulation.experiments.psm_schedule`)."""
+    together (each worker takes the next piece when it is free). CPU seconds of each piece alone
+    in a fresh worker on this 2-core machine, its imports included (``benchmarks/bench_report.py``
+    times them in the pool): tracking 4.2 per experiment, safety's PSM teleoperation 3.4,
+    robustness 3.3, safety's linear scenarios 2.7, effort maps 2.6, gain schedule 1.7, safety's
+    certificates 1.7, MuJoCo 1.2, robot views 1.2, models 0.3. The pieces that need the nominal
+    gain schedule design it once per worker (:func:`rcm_kin.simulation.experiments.psm_schedule`)."""
     from rcm_kin.report.sections.drive_train import drive_train_section
     from rcm_kin.report.sections.gravity import gravity_section
     from rcm_kin.report.sections.measured import measured_section
@@ -95,15 +95,16 @@ def report_jobs(out: Path, data, map_points: int) -> list[Job]:
         jobs += [Job("measured data", measured_section, (out, Path(data))),
                  Job("identified drive train", drive_train_section, (out, Path(data)))]
     return jobs + [
-        Job("robustness", robustness_section, (out,)),
         Job("tracking: sine", _tracking_part, (out, "sine", recording)),
         Job("tracking: target", _tracking_part, (out, "target", recording)),
         Job("safety: PSM teleoperation", scenario_runs, (out, ("psm",))),
-        Job("gain schedule, linear models", _schedule_sections, (out,)),
+        Job("robustness", robustness_section, (out,)),
         Job("safety: linear scenarios", scenario_runs, (out, LINEAR_SCENARIOS)),
+        Job("effort maps", gravity_section, (out, map_points)),
+        Job("gain schedule, linear models", _schedule_sections, (out,)),
         Job("safety: certificates, RCM", safety_checks, ()),
-        Job("effort maps", gravity_section, (out, map_points)), Job("MuJoCo", mujoco_section, (out,)),
-        Job("robot views", robots_section, (out,)), Job("models checked", models_section, (out,))]
+        Job("MuJoCo", mujoco_section, (out,)), Job("robot views", robots_section, (out,)),
+        Job("models checked", models_section, (out,))]
 
 
 LINEAR_SCENARIOS = ("ellipsoid", "slide", "heart")     # the safety scenarios with a barrier figure
