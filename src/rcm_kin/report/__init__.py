@@ -10,8 +10,10 @@ Monte Carlo, the same as `rcm-kin robustness` gives on Dask), and the safety fil
 calibration, identification per pose, the grey-box fit, and the identified drive train against
 every step log (each also left out of the fit) on the measured logs.
 
-Each section computes a plain data object; :mod:`rcm_kin.report.render` renders them. Every
-link in index.html is relative to the report folder, so the folder can be moved or served.
+Each section computes a plain data object; :mod:`rcm_kin.report.render` renders them. The
+sections are cut into independent pieces (:func:`report_jobs`) that a process pool runs on the
+machine's cores (:func:`run_jobs`), and put together in a fixed order. Every link in index.html
+is relative to the report folder, so the folder can be moved or served.
 """
 
 from __future__ import annotations
@@ -67,6 +69,8 @@ class Job:
 
 @dataclass(frozen=True)
 class JobResult:
+    """What a piece gave back, how long it took and which worker ran it."""
+
     value: object
     seconds: float      # wall time in the worker
     worker: int         # the worker's process id
