@@ -274,7 +274,7 @@ def _failing_robot_views(out):
     raise RcmKinError("robot views failed <here>")
 
 
-def _skipped_section(out, *rest):
+def _skipped_section(*arguments):
     """A section that does nothing (the long ones, so that the failure comes quickly)."""
 
 
@@ -285,7 +285,8 @@ def test_a_failed_report_still_has_an_index_saying_so(capsys, tmp_path, monkeypa
     import rcm_kin.report.sections.safety as safety
 
     monkeypatch.setattr(robots, "robots_section", _failing_robot_views)
-    for module, name in ((safety, "safety_section"), (robustness, "robustness_section"), (report, "_control_sections")):
+    for module, name in ((safety, "scenario_runs"), (safety, "safety_checks"), (robustness, "robustness_section"),
+                         (report, "_schedule_sections"), (report, "_tracking_part")):
         monkeypatch.setattr(module, name, _skipped_section)
     assert_one_line_error(capsys, ["report", "--out", tmp_path / "r", "--json"], "robot views failed <here>")
     index = (tmp_path / "r" / "index.html").read_text()

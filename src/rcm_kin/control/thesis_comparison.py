@@ -42,8 +42,14 @@ def thesis_roll_closed_loop(kp: float, kd: float) -> np.ndarray:
     return np.roots(np.polysub(den, np.polymul(num, [-kd, kp])))
 
 
-def compare_with_thesis(model: DrivenDynamics, points: int = 21) -> ThesisComparison:
-    schedule = schedule_gains(model, THESIS_ROLL_DEG, THESIS_PITCH_DEG)
+def compare_with_thesis(model: DrivenDynamics, points: int = 21,
+                        schedule: GainSchedule | None = None) -> ThesisComparison:
+    """Our schedule on the thesis grid and the thesis's tables, surveyed on ``model`` over ``points``
+    per axis. ``schedule``: ours when already designed on ``model`` (``schedule_gains(model,
+    THESIS_ROLL_DEG, THESIS_PITCH_DEG)``, e.g. :func:`rcm_kin.simulation.experiments.psm_schedule`),
+    default designed here."""
+    if schedule is None:
+        schedule = schedule_gains(model, THESIS_ROLL_DEG, THESIS_PITCH_DEG)
 
     def thesis(r, p, flip=1.0):
         k_roll = bilinear(schedule.roll_deg, schedule.pitch_deg, THESIS_K_ROLL, r, p)

@@ -10,13 +10,20 @@ Monte Carlo, the same as `rcm-kin robustness` gives on Dask), and the safety fil
 calibration, identification per pose, the grey-box fit, and the identified drive train against
 every step log (each also left out of the fit) on the measured logs.
 
-Each section computes a plain data object; :mod:`rcm_kin.report.render` renders them. Every
-link in index.html is relative to the report folder, so the folder can be moved or served.
+Each section computes a plain data object; :mod:`rcm_kin.report.render` renders them. The
+sections are cut into independent pieces (:func:`report_jobs`) that a process pool runs on the
+machine's cores (:func:`run_jobs`), and put together in a fixed order. Every link in index.html
+is relative to the report folder, so the folder can be moved or served.
 """
 
 from __future__ import annotations
 
 import html
+import os
+import time
+from collections.abc import Callable
+from concurrent.futures import as_completed
+from dataclasses import dataclass
 from pathlib import Path
 
 from rcm_kin.errors import RcmKinError, output_folder
@@ -27,10 +34,11 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     """Run the pipeline on the bundled models (and, with ``data``, on a folder of measured logs);
     ``map_points`` per axis of the holding-effort maps. Returns the path of index.html.
 
-    Independent sections run in a pool of ``workers`` processes (default: the cores this process
-    may use, at most 4); each writes its own files and returns its data object, and the index
-    lists them in a fixed order, so the report is the same whatever the number of workers or the
-    order in which they finish. A report that fails leaves an index.html that says so."""
+    Independent pieces of the sections (:func:`report_jobs`) run in a pool of ``workers``
+    processes (default: the cores this process may use, at most 4); each writes its own files and
+    returns its data object, the sections are put together from them and the index lists them in
+    a fixed order, so the report is the same whatever the number of workers or the order in which
+    they finish. A report that fails leaves an index.html that says so."""
     from rcm_kin.robustness.execution import machine_workers
     from rcm_kin.statics.calibration import calibration_logs
     from rcm_kin.statics.gravity_map import check_map_size
@@ -49,14 +57,33 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
         raise
 
 
-def _write_sections(out: Path, data, map_points: int, progress: bool, workers: int) -> Path:
-    """The sections (see :func:`write_report`) in a process pool, then index.html."""
-    from concurrent.futures import ProcessPoolExecutor
-    from multiprocessing import get_context
+@dataclass(frozen=True)
+class Job:
+    """A piece of the report that a pool worker runs on its own: ``function(*arguments)``, a data
+    object back (pickled), its files written into the report folder."""
 
-    from tqdm import tqdm
+    label: str
+    function: Callable
+    arguments: tuple
 
-    from rcm_kin.report.render import render_index
+
+@dataclass(frozen=True)
+class JobResult:
+    """What a piece gave back, how long it took and which worker ran it."""
+
+    value: object
+    seconds: float      # wall time in the worker
+    worker: int         # the worker's process id
+
+
+def report_jobs(out: Path, data, map_points: int) -> list[Job]:
+    """The report's independent pieces, the longest first so that the pool's workers finish
+    together (each worker takes the next piece when it is free). CPU seconds of each piece alone
+    in a fresh worker on this 2-core machine, its imports included (``benchmarks/bench_report.py``
+    times them in the pool): tracking 4.2 per experiment, safety's PSM teleoperation 3.4,
+    robustness 3.3, safety's linear scenarios 2.7, effort maps 2.6, gain schedule 1.7, safety's
+    certificates 1.7, MuJoCo 1.2, robot views 1.2, models 0.3. The pieces that need the nominal
+    gain schedule design it once per worker (:func:`rcm_kin.simulation.experiments.psm_schedule`)."""
     from rcm_kin.report.sections.drive_train import drive_train_section
     from rcm_kin.report.sections.gravity import gravity_section
     from rcm_kin.report.sections.measured import measured_section
@@ -64,50 +91,97 @@ def _write_sections(out: Path, data, map_points: int, progress: bool, workers: i
     from rcm_kin.report.sections.mujoco import mujoco_section
     from rcm_kin.report.sections.robots import robots_section
     from rcm_kin.report.sections.robustness import robustness_section
-    from rcm_kin.report.sections.safety import safety_section
+    from rcm_kin.report.sections.safety import safety_checks, scenario_runs
 
-    # (label, function, arguments), the longest first (safety ~18 s, the control chain ~15 s, robustness
-    # ~13 s in its worker, the rest a few s each on this machine) so that the pool's
-    # workers finish together
-    jobs = [("safety", safety_section, (out,)),
-            ("gain schedule, linear models, tracking", _control_sections, (out, _mtm_recording(data))),
-            ("robustness", robustness_section, (out,)),
-            ("effort maps", gravity_section, (out, map_points)), ("robot views", robots_section, (out,)),
-            ("models checked", models_section, (out,)), ("MuJoCo", mujoco_section, (out,))]
+    recording = _mtm_recording(data)
+    jobs = []
     if data is not None:
-        jobs += [("measured data", measured_section, (out, Path(data))),
-                 ("identified drive train", drive_train_section, (out, Path(data)))]
-    with tqdm(total=len(jobs) + 1, desc="report", unit="section", disable=not progress) as bar:
+        jobs += [Job("measured data", measured_section, (out, Path(data))),
+                 Job("identified drive train", drive_train_section, (out, Path(data)))]
+    return jobs + [
+        Job("tracking: sine", _tracking_part, (out, "sine", recording)),
+        Job("tracking: target", _tracking_part, (out, "target", recording)),
+        Job("safety: PSM teleoperation", scenario_runs, (out, ("psm",))),
+        Job("robustness", robustness_section, (out,)),
+        Job("safety: linear scenarios", scenario_runs, (out, LINEAR_SCENARIOS)),
+        Job("effort maps", gravity_section, (out, map_points)),
+        Job("gain schedule, linear models", _schedule_sections, (out,)),
+        Job("safety: certificates, RCM", safety_checks, ()),
+        Job("MuJoCo", mujoco_section, (out,)), Job("robot views", robots_section, (out,)),
+        Job("models checked", models_section, (out,))]
+
+
+LINEAR_SCENARIOS = ("ellipsoid", "slide", "heart")     # the safety scenarios with a barrier figure
+
+
+def _timed(function: Callable, arguments: tuple) -> JobResult:
+    start = time.perf_counter()
+    value = function(*arguments)
+    return JobResult(value, time.perf_counter() - start, os.getpid())
+
+
+def run_jobs(jobs: list[Job], workers: int, progress: bool = False) -> dict[str, JobResult]:
+    """``jobs`` in a pool of ``workers`` forked processes, taken in their order; label -> result.
+    The first error in a job is raised here, the jobs not started yet cancelled (the running ones
+    finish first)."""
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    from tqdm import tqdm
+
+    results = {}
+    with tqdm(total=len(jobs), desc="report", unit="part", disable=not progress) as bar:
         with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("fork")) as pool:
-            futures = [pool.submit(function, *arguments) for _, function, arguments in jobs]
-            results = {}
-            for (label, _, _), future in zip(jobs, futures):
-                results[label] = future.result()
-                bar.set_postfix_str(label)
-                bar.update()
-        schedule, linear, tracking = results["gain schedule, linear models, tracking"]
-        sections = [results["robot views"], results["models checked"], results["effort maps"], linear, schedule,
-                    tracking, results["robustness"], results["safety"]]
-        sections += [s for s in [results["MuJoCo"]] if s is not None]   # with the [mujoco] extra
-        if data is not None:
-            sections.append(results["measured data"])
-            identified = results["identified drive train"]
-            sections += [identified] if identified is not None else []
-        index = out / "index.html"
-        index.write_text(render_index(sections))
-        bar.set_postfix_str("index.html")
-        bar.update()
+            futures = {pool.submit(_timed, job.function, job.arguments): job.label for job in jobs}
+            try:
+                for future in as_completed(futures):
+                    results[futures[future]] = future.result()
+                    bar.set_postfix_str(futures[future])
+                    bar.update()
+            except BaseException:
+                pool.shutdown(cancel_futures=True)
+                raise
+    return results
+
+
+def _write_sections(out: Path, data, map_points: int, progress: bool, workers: int) -> Path:
+    """The sections (see :func:`write_report`) from the pieces run in a process pool, then index.html."""
+    from rcm_kin.report.render import render_index
+    from rcm_kin.report.sections.safety import safety_from_parts
+    from rcm_kin.report.sections.tracking import tracking_from_parts
+
+    results = {label: r.value for label, r in run_jobs(report_jobs(out, data, map_points), workers, progress).items()}
+    schedule, linear = results["gain schedule, linear models"]
+    tracking = tracking_from_parts([results["tracking: sine"], results["tracking: target"]], _mtm_recording(data))
+    safety = safety_from_parts([results["safety: linear scenarios"], results["safety: PSM teleoperation"]],
+                               results["safety: certificates, RCM"])
+    sections = [results["robot views"], results["models checked"], results["effort maps"], linear, schedule,
+                tracking, results["robustness"], safety]
+    sections += [s for s in [results["MuJoCo"]] if s is not None]   # with the [mujoco] extra
+    if data is not None:
+        sections.append(results["measured data"])
+        identified = results["identified drive train"]
+        sections += [identified] if identified is not None else []
+    index = out / "index.html"
+    index.write_text(render_index(sections))
     return index
 
 
-def _control_sections(out: Path, recording: Path | None) -> tuple:
-    """The sections that share the gain schedule: the schedule, the linear models, the tracking."""
+def _schedule_sections(out: Path) -> tuple:
+    """The gain schedule and the linear models of its grid."""
     from rcm_kin.report.sections.linear_models import linear_models_section
     from rcm_kin.report.sections.schedule import schedule_section
-    from rcm_kin.report.sections.tracking import tracking_section
 
     schedule = schedule_section(out)
-    return schedule, linear_models_section(out, schedule.schedule), tracking_section(out, schedule.schedule, recording)
+    return schedule, linear_models_section(out, schedule.schedule)
+
+
+def _tracking_part(out: Path, experiment: str, recording: Path | None):
+    """One tracking experiment with the nominal gain schedule (the schedule section's)."""
+    from rcm_kin.report.sections.tracking import tracking_experiment
+    from rcm_kin.simulation.experiments import psm_schedule
+
+    return tracking_experiment(out, psm_schedule(), experiment, recording)
 
 
 def _mtm_recording(data) -> Path | None:

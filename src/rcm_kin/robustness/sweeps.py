@@ -27,9 +27,9 @@ from rcm_kin.hardware import PWM_LIMIT
 from rcm_kin.robot import load_robot
 from rcm_kin.robustness.task import linear_law, loop_margins, sample_plant
 from rcm_kin.simulation.controllers import Hold, make_controller
-from rcm_kin.simulation.experiments import experiment_reference
+from rcm_kin.simulation.experiments import closed_loop, experiment_reference
 from rcm_kin.simulation.firmware import FirmwareSettings
-from rcm_kin.simulation.loop import firmware_units, simulate, tracking_metrics
+from rcm_kin.simulation.loop import firmware_units, tracking_metrics
 from rcm_kin.statics.counterweights import design_counterweights, workspace_grid
 
 
@@ -103,8 +103,7 @@ def weights_batch(batch: list[tuple[float, float]], params: DriveParameters, exp
     rows = []
     for error_deg, fraction in batch:
         schedule = schedule_gains(model, THESIS_ROLL_DEG, THESIS_PITCH_DEG, weights=budget_weights(error_deg, fraction))
-        run = simulate(plant.step, make_controller("scheduled", schedule), reference, settings, initial=plant.initial,
-                       hold=hold)
+        run = closed_loop(plant, make_controller("scheduled", schedule), reference, settings, hold=hold)
         m = tracking_metrics(run)
         _, radius, _ = loop_margins(model, schedule, linear_law("scheduled", schedule), points)
         rows.append(WeightsRow(error_deg, fraction, m["roll"].max_error_deg, m["pitch"].max_error_deg,

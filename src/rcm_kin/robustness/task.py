@@ -4,7 +4,8 @@ The controllers are the ones flashed once: their gain schedule is designed on th
 parameter set (:func:`rcm_kin.simulation.experiments.psm_plant_and_schedule`), and only the plant
 (the robot the schedule meets) takes the drawn parameters. Per sample and controller:
 
-- the closed-loop experiment (:func:`rcm_kin.simulation.loop.simulate`, 400 Hz firmware) and its
+- the closed-loop experiment (400 Hz firmware; :func:`rcm_kin.simulation.experiments.closed_loop`,
+  in the compiled kernel, equal to :func:`rcm_kin.simulation.loop.simulate` tick for tick) and its
   tracking metrics; a run is *unstable* (:func:`closed_loop_run`) when its state leaves the
   finite numbers (diverged) or its joints leave their range
   (:func:`rcm_kin.simulation.experiments.check_in_limits`, where the model means nothing);
@@ -36,16 +37,15 @@ from rcm_kin.control.stability import damping_ratios, firmware_loop_matrix
 from rcm_kin.control.thesis_reference import K_PITCH, K_ROLL
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics, holding_pwm
-from rcm_kin.errors import JointLimitError, RcmKinError
+from rcm_kin.errors import JointLimitError, NonFiniteResultError, RcmKinError
 from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS
 from rcm_kin.robot import load_robot
 from rcm_kin.robustness.sampling import Uncertain, draw, with_values
 from rcm_kin.simulation.controllers import CONTROLLERS, Hold, make_controller
-from rcm_kin.simulation.experiments import (SmoothPlant, check_in_limits, experiment_reference,
+from rcm_kin.simulation.experiments import (check_in_limits, closed_loop, experiment_reference, psm_plant,
                                             psm_plant_and_schedule)
 from rcm_kin.simulation.firmware import FirmwareSettings
-from rcm_kin.simulation.loop import AXES, SimulationResult, firmware_units, simulate, tracking_metrics
-from rcm_kin.simulation.plant import drive_train_plant, period_map
+from rcm_kin.simulation.loop import AXES, SimulationResult, firmware_units, tracking_metrics
 
 SURVEY_POINTS = 5       # per axis of the stability grid
 
@@ -156,39 +156,21 @@ def _reference(experiment: str, period: float, duration: float | None):
 
 
 def sample_plant(params: DriveParameters, period: float):
-    """The plant of a drawn set: its identified drive trains when it has them, else the smooth
-    model's period map (as :func:`rcm_kin.simulation.experiments.psm_plant_and_schedule`)."""
-    psm = load_robot("psm")
-    if params.drive_train:
-        return drive_train_plant(psm, params, period)
-    smooth = period_map(driven_dynamics(psm, params).forward, period)
-    return SmoothPlant(lambda x, u: np.array(smooth(x, u)).ravel())
-
-
-class Diverged(Exception):
-    """The plant's state left the finite numbers (raised out of :func:`simulate` by the step)."""
-
-
-def finite_steps(step):
-    """``step(x, u) -> x`` that raises :class:`Diverged` on a state with a NaN or an infinity."""
-    def checked(x, u):
-        x = step(x, u)
-        if not np.all(np.isfinite(x)):
-            raise Diverged
-        return x
-    return checked
+    """The plant of a drawn set, its model functions compiled: its identified drive trains when it
+    has them, else the smooth model's period map (:func:`rcm_kin.simulation.experiments.psm_plant`)."""
+    return psm_plant(params, period, fast=True)
 
 
 def closed_loop_run(plant, controller, reference, settings: FirmwareSettings,
                     hold: Hold | None = None) -> SimulationResult | None:
-    """``controller`` on ``plant`` (``step``, ``initial``) along ``reference``, from ``hold`` (the
-    steady hold of the first pose); None when the run is unstable: its state diverged (left the
-    finite numbers) or its joints left their range."""
+    """``controller`` on ``plant`` (``step``, ``initial``) along ``reference`` from ``hold`` (the
+    steady hold of the first pose), in the compiled loop where there is one
+    (:func:`rcm_kin.simulation.experiments.closed_loop`); None when the run is unstable: its state
+    diverged (left the finite numbers) or its joints left their range."""
     try:
-        result = simulate(finite_steps(plant.step), controller, reference, settings, initial=plant.initial,
-                          hold=hold)
+        result = closed_loop(plant, controller, reference, settings, hold=hold)
         check_in_limits(result)
-    except (Diverged, JointLimitError):
+    except (NonFiniteResultError, JointLimitError):
         return None
     return result
 

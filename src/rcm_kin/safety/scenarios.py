@@ -172,7 +172,8 @@ def psm_run(filter: str = "blend", trajectory=None, controller: str = "scheduled
     filter works in coordinates centred on the ellipsoid, where ``k0`` does not depend on where
     the robot's base is; ``kappa`` in m, scaled to the millimetre geometry); the
     PSM IK maps the filtered tip to roll, pitch and insertion (the RCM by construction, the
-    joint limits checked), and the 400 Hz loop with ``controller`` tracks it. The margin is
+    joint limits checked), and the 400 Hz loop with ``controller`` tracks it (the compiled loop,
+    :func:`rcm_kin.simulation.experiments.closed_loop`). The margin is
     measured on the true ellipsoid at the tip the simulated robot reaches."""
     from scipy.interpolate import CubicSpline
 
@@ -181,9 +182,9 @@ def psm_run(filter: str = "blend", trajectory=None, controller: str = "scheduled
     from rcm_kin.kinematics.teleop import default_teleop_map, psm_targets
     from rcm_kin.robot import load_robot
     from rcm_kin.simulation.controllers import make_controller
-    from rcm_kin.simulation.experiments import psm_plant_and_schedule, start_hold
+    from rcm_kin.simulation.experiments import closed_loop, psm_plant_and_schedule, start_hold
     from rcm_kin.simulation.firmware import FirmwareSettings
-    from rcm_kin.simulation.loop import si_units, simulate
+    from rcm_kin.simulation.loop import si_units
     from rcm_kin.simulation.references import Reference, load_mtm_trajectory
 
     psm = load_robot("psm")
@@ -211,9 +212,8 @@ def psm_run(filter: str = "blend", trajectory=None, controller: str = "scheduled
     q = np.zeros(psm.nq)
     spline = CubicSpline(reference.time, joints)
     ref = Reference(reference.time, joints, spline(reference.time, 1), spline(reference.time, 2))
-    plant, schedule = psm_plant_and_schedule(period=T)
-    run = simulate(plant.step, make_controller(controller, schedule), ref, settings, initial=plant.initial,
-                   hold=start_hold(ref))
+    plant, schedule = psm_plant_and_schedule(period=T, fast=True)
+    run = closed_loop(plant, make_controller(controller, schedule), ref, settings, hold=start_hold(ref))
     tip = []
     for true in si_units(run.position):       # the simulated robot's true joints, not the encoder counts
         q[:3] = true

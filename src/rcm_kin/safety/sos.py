@@ -198,6 +198,7 @@ class Certificate:
     status: str
     B: dict                       # exponent tuple -> coefficient, in the program's SI variables
     program: BarrierProgram
+    check: SamplingCheck | None = None    # check_by_sampling of B (None: the solver gave no B)
 
     def as_dict(self) -> dict:
         return {"variables": list(self.program.variables),
@@ -256,8 +257,8 @@ def find_certificate(program: BarrierProgram, solver: str | None = None) -> Cert
         for k, e in enumerate(monomials(n, program.b_degrees))}
     # a certificate counts once it passes the sampling check as well (the solver's word alone can be
     # inaccurate)
-    feasible = solved and check_by_sampling(values, program).passed
-    return Certificate(feasible, problem.status, values, program)
+    check = check_by_sampling(values, program) if solved else None
+    return Certificate(solved and check.passed, problem.status, values, program, check)
 
 
 @dataclass(frozen=True)

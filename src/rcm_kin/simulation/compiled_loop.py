@@ -52,7 +52,7 @@ from rcm_kin.control import thesis_reference
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG
 from rcm_kin.dynamics import stick_slip
 from rcm_kin.dynamics.stick_slip import SUBSTEP, _advance
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import NonFiniteResultError, RcmKinError
 from rcm_kin.hardware import INSERTION_KP
 from rcm_kin.simulation.controllers import (Controller, Hold, PController, PIDController, StateFeedbackController,
                                             ThesisController)
@@ -496,6 +496,6 @@ def simulate_compiled(plant: CompiledPlant, law: LoopLaw, name: str, reference: 
                        law.roll_deg, law.pitch_deg, law.table, law.hold, law.friction,
                        *plant.kernel_arguments()[:-2], plant.substeps, *logs)   # the period given above
             if end != stop:
-                raise RcmKinError(f"the simulation diverged at t = {end * settings.period:.3f} s ({name})")
+                raise NonFiniteResultError(f"the simulation diverged at t = {end * settings.period:.3f} s ({name})")
             ticks.update(stop - first)
     return SimulationResult(name, reference.time, ref_fw, *logs, settings)

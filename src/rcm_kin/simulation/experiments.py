@@ -13,14 +13,14 @@ from typing import Callable
 
 import numpy as np
 
-from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, schedule_gains
+from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, schedule_gains
 from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
 from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.robot import load_robot
 from rcm_kin.simulation.compiled_loop import (CompiledPlant, compiled_drive_train, compiled_smooth, loop_law,
                                               simulate_compiled)
-from rcm_kin.simulation.controllers import Hold, make_controller
+from rcm_kin.simulation.controllers import Controller, Hold, make_controller
 from rcm_kin.simulation.fast_path import compiled_period_map, fast_controller, fast_plant
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import SimulationResult, firmware_units, simulate
@@ -43,27 +43,44 @@ def experiment_reference(experiment: str, period: float, duration: float | None 
     return target_reference(load_robot("psm"), duration, period, trajectory)
 
 
-_BUILT: dict[str, tuple] = {}     # repr(params, period, substeps, fast) -> (plant, schedule); models take ~1 s
-_GRAVITY: dict[str, object] = {}  # repr(params) -> DrivenDynamics (its gravity gives the holding PWM)
+_BUILT: dict[str, object] = {}               # repr(params, period, substeps, fast) -> plant
+_SCHEDULES: dict[str, GainSchedule] = {}     # repr(params) -> schedule (about 0.5 s each)
+_GRAVITY: dict[str, object] = {}             # repr(params) -> DrivenDynamics (its gravity gives the holding PWM)
+
+
+def psm_plant(params: DriveParameters, period: float, substeps: int = 4, fast: bool = False):
+    """The PSM plant with ``params`` (``step(x, u) -> x`` over one ``period`` s, ``initial(q) -> x``):
+    the identified drive trains (:class:`~rcm_kin.simulation.plant.DriveTrainPlant`) when
+    ``params`` has them, else the smooth model's period map (``substeps`` RK4 steps); ``fast``: its
+    model functions compiled (a :class:`~rcm_kin.simulation.compiled_loop.CompiledPlant`; without a
+    C compiler the per-tick :mod:`rcm_kin.simulation.fast_path`)."""
+    psm = load_robot("psm")
+    if params.drive_train:
+        plant = drive_train_plant(psm, params, period)
+        return (compiled_drive_train(plant) or fast_plant(plant)) if fast else plant
+    smooth = period_map(driven_dynamics(psm, params).forward, period, substeps)
+    if fast:
+        return compiled_smooth(smooth, period) or SmoothPlant(compiled_period_map(smooth))
+    return SmoothPlant(lambda x, u: np.array(smooth(x, u)).ravel())
+
+
+def psm_schedule(params: DriveParameters | None = None) -> GainSchedule:
+    """The gain schedule of the PSM with ``params`` (default: shipped set) on the thesis grid,
+    designed on the model without Coulomb friction (as ``rcm-kin schedule``); computed once per
+    process and parameter set (about 0.5 s)."""
+    params = params or load_drive_parameters()
+    key = repr(params)
+    if key not in _SCHEDULES:
+        _SCHEDULES[key] = schedule_gains(driven_dynamics(load_robot("psm"), params, coulomb=False), THESIS_ROLL_DEG,
+                                         THESIS_PITCH_DEG)
+    return _SCHEDULES[key]
 
 
 def _plant_and_schedule(params: DriveParameters, period: float, substeps: int, fast: bool):
     key = repr((params, period, substeps, fast))
     if key not in _BUILT:
-        psm = load_robot("psm")
-        if params.drive_train:
-            plant = drive_train_plant(psm, params, period)
-            if fast:
-                plant = compiled_drive_train(plant) or fast_plant(plant)
-        else:
-            smooth = period_map(driven_dynamics(psm, params).forward, period, substeps)
-            if fast:
-                plant = compiled_smooth(smooth, period) or SmoothPlant(compiled_period_map(smooth))
-            else:
-                plant = SmoothPlant(lambda x, u: np.array(smooth(x, u)).ravel())
-        schedule = schedule_gains(driven_dynamics(psm, params, coulomb=False), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
-        _BUILT[key] = plant, schedule
-    return _BUILT[key]
+        _BUILT[key] = psm_plant(params, period, substeps, fast)
+    return _BUILT[key], psm_schedule(params)
 
 
 @dataclass(frozen=True)
@@ -109,15 +126,27 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
     settings = settings or FirmwareSettings()
     plant, schedule = psm_plant_and_schedule(params, settings.period, fast=fast)
     reference = experiment_reference(experiment, settings.period, duration, trajectory)
-    law, hold = make_controller(controller, schedule), start_hold(reference, params)
-    arrays = loop_law(law, hold) if isinstance(plant, CompiledPlant) else None
-    if arrays is not None:
-        result = simulate_compiled(plant, arrays, law.name, reference, settings, seed=seed, progress=progress)
-    else:
-        result = simulate(plant.step, fast_controller(law) if fast else law, reference, settings, seed=seed,
-                          progress=progress, initial=plant.initial, hold=hold)
+    result = closed_loop(plant, make_controller(controller, schedule), reference, settings, seed, progress, fast,
+                         hold=start_hold(reference, params))
     check_in_limits(result)
     return result
+
+
+def closed_loop(plant, controller: Controller, reference: Reference, settings: FirmwareSettings | None = None,
+                seed: int = 0, progress: bool = False, fast: bool = True, hold: Hold | None = None) -> SimulationResult:
+    """``controller`` on ``plant`` (:func:`psm_plant`) along ``reference``, from rest at its first
+    pose, the controller's integrals charged to ``hold`` (:func:`start_hold`) when given. ``fast``: in one compiled kernel when the plant is a
+    :class:`~rcm_kin.simulation.compiled_loop.CompiledPlant` and the kernel knows the controller,
+    else tick by tick with the controller's fast path (:func:`fast_controller`); ``False``: the
+    readable reference loop (:func:`rcm_kin.simulation.loop.simulate`). The same result either way
+    (the tests hold the paths to each other tick for tick). A state that leaves the finite numbers
+    raises :class:`~rcm_kin.errors.NonFiniteResultError`."""
+    settings = settings or FirmwareSettings()
+    arrays = loop_law(controller, hold) if fast and isinstance(plant, CompiledPlant) else None
+    if arrays is not None:
+        return simulate_compiled(plant, arrays, controller.name, reference, settings, seed=seed, progress=progress)
+    return simulate(plant.step, fast_controller(controller) if fast else controller, reference, settings, seed=seed,
+                    progress=progress, initial=plant.initial, hold=hold)
 
 
 def check_in_limits(result: SimulationResult) -> None:

@@ -16,7 +16,7 @@ from typing import Callable
 import numpy as np
 from tqdm import tqdm
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import NonFiniteResultError, RcmKinError
 from rcm_kin.simulation.controllers import Controller, Hold, Sample
 from rcm_kin.simulation.firmware import FirmwareSettings, encoder_reading, sent_pwm, velocity_estimate
 from rcm_kin.simulation.references import Reference
@@ -69,7 +69,8 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: C
              hold: Hold | None = None) -> SimulationResult:
     """Run ``controller`` on the plant ``step(x, u) -> x`` (one period; ``x[:3]`` the positions the
     encoders see, SI) along ``reference``, from rest at the first reference pose: ``initial(q)``
-    when given, else ``x = [q; 0]``; the controller's memory ``initial_memory(hold)``.
+    when given, else ``x = [q; 0]``; the controller's memory ``initial_memory(hold)``. A state that leaves the finite numbers raises
+    :class:`~rcm_kin.errors.NonFiniteResultError` (the simulation diverged).
     Deterministic for a given ``seed`` (which only drives the optional encoder noise)."""
     settings = settings or FirmwareSettings()
     check_run(reference, settings, settle)
@@ -99,7 +100,8 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: C
                 log[key][k] = value
         x = step(x, u)
         if not np.all(np.isfinite(x)):
-            raise RcmKinError(f"the simulation diverged at t = {k * settings.period:.3f} s ({controller.name})")
+            raise NonFiniteResultError(f"the simulation diverged at t = {k * settings.period:.3f} s "
+                                       f"({controller.name})")
         previous = measured
     return SimulationResult(controller.name, reference.time, ref_fw, log["measured"], log["position"],
                             log["command"], log["pwm"], settings)

@@ -28,13 +28,30 @@ class SafetySection:
     sos_available: bool
 
 
-def _scenarios(out: Path, scenarios, filters) -> tuple[Table, str | None, object]:
+@dataclass(frozen=True)
+class ScenarioRuns:
+    """Scenarios run with each filter: their rows of the scenario table, the barrier figure of
+    those with a B(t) of their own (None: only the PSM's ran), and the PSM run's no-go radius and
+    the allowance its filter adds (mm; None: the PSM's did not run)."""
+
+    rows: tuple[tuple[str, ...], ...]
+    figure: str | None
+    psm_no_go_mm: float | None
+    psm_allowance_mm: float | None
+
+
+SCENARIO_HEADER = ("scenario", "filter", "min margin", "unsafe samples", "samples")
+
+
+def scenario_runs(out: Path, scenarios=None, filters=None) -> ScenarioRuns:
+    """Run ``scenarios`` x ``filters`` (default all); the barrier figure into
+    ``out/safety_barriers.png``."""
     from rcm_kin.report.figures import barrier_figure
-    from rcm_kin.safety.scenarios import run_scenario
+    from rcm_kin.safety.scenarios import FILTERS, SCENARIOS, run_scenario
 
     runs, rows, psm = {}, [], None
-    for scenario in scenarios:
-        for name in filters:
+    for scenario in scenarios or SCENARIOS:
+        for name in filters or FILTERS:
             run = run_scenario(scenario, name)
             summary = run.summary()
             if scenario == "psm":
@@ -43,7 +60,9 @@ def _scenarios(out: Path, scenarios, filters) -> tuple[Table, str | None, object
                 runs.setdefault(scenario, {})[name] = run
             rows.append([scenario, name, f"{summary['min_margin']:+.4g}", summary["violations"], summary["samples"]])
     figure = relative(barrier_figure(runs, out / "safety_barriers.png"), out) if runs else None
-    return Table.of(rows, ["scenario", "filter", "min margin", "unsafe samples", "samples"]), figure, psm
+    return ScenarioRuns(Table.of(rows, SCENARIO_HEADER).rows, figure,
+                        float(np.min(psm.ellipsoid.radii)) * 1e3 if psm else None,
+                        psm.allowance * 1e3 if psm else None)
 
 
 def _rcm_table(chains) -> Table:
@@ -60,27 +79,45 @@ def _rcm_table(chains) -> Table:
 
 
 def _certificates(programs=None) -> Table:
-    from rcm_kin.safety.sos import PROGRAMS, check_by_sampling, find_certificate, thesis_program
+    from rcm_kin.safety.sos import PROGRAMS, find_certificate, thesis_program
 
     rows = []
     for number in programs or PROGRAMS:
         program = thesis_program(number)
         c = find_certificate(program)
-        check = check_by_sampling(c.B, program) if c.B else None
         rows.append([number, program.name, "yes" if c.feasible else "no", c.status,
-                     "passed" if check and check.passed else "-"])
+                     "passed" if c.check and c.check.passed else "-"])
     return Table.of(rows, ["program", "closed loop", "certificate", "solver", "sampling check"])
+
+
+@dataclass(frozen=True)
+class SafetyChecks:
+    """The RCM scatter of the chains and the SOS certificates (None: cvxpy missing or not asked for)."""
+
+    rcm: Table
+    certificates: Table | None
+    sos_available: bool
+
+
+def safety_checks(chains=RCM_CHAINS, certificates: bool = True, programs=None) -> SafetyChecks:
+    """The RCM scatter of ``chains`` and, with ``certificates`` and cvxpy installed, the SOS
+    programs ``programs`` (default all)."""
+    sos = importlib.util.find_spec("cvxpy") is not None
+    return SafetyChecks(_rcm_table(chains), _certificates(programs) if sos and certificates else None, sos)
+
+
+def safety_from_parts(runs: list[ScenarioRuns], checks: SafetyChecks) -> SafetySection:
+    """The section of scenario runs (rows in the order of ``runs``; the report runs the scenarios
+    with a barrier figure in one part, the PSM's in another) and the checks."""
+    figure = next((r.figure for r in runs if r.figure), None)
+    psm = next((r for r in runs if r.psm_no_go_mm is not None), None)
+    return SafetySection(Table(SCENARIO_HEADER, tuple(row for r in runs for row in r.rows)), figure,
+                         psm.psm_no_go_mm if psm else None, psm.psm_allowance_mm if psm else None, checks.rcm,
+                         checks.certificates, checks.sos_available)
 
 
 def safety_section(out: Path, scenarios=None, filters=None, chains=RCM_CHAINS, certificates: bool = True,
                    programs=None) -> SafetySection:
     """Run ``scenarios`` x ``filters`` (default all), the RCM scatter of ``chains`` and, with
     ``certificates`` and cvxpy installed, the SOS programs ``programs`` (default all)."""
-    from rcm_kin.safety.scenarios import FILTERS, SCENARIOS
-
-    table, figure, psm = _scenarios(out, scenarios or SCENARIOS, filters or FILTERS)
-    sos = importlib.util.find_spec("cvxpy") is not None
-    return SafetySection(
-        table, figure, float(np.min(psm.ellipsoid.radii)) * 1e3 if psm else None,
-        psm.allowance * 1e3 if psm else None, _rcm_table(chains),
-        _certificates(programs) if sos and certificates else None, sos)
+    return safety_from_parts([scenario_runs(out, scenarios, filters)], safety_checks(chains, certificates, programs))

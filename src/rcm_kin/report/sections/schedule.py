@@ -58,16 +58,18 @@ def _verdicts(surveys: dict) -> Table:
 
 
 def schedule_section(out: Path, survey_points: int = 21) -> ScheduleSection:
-    """Schedule, export (``out/gain_schedule``), stability surveys on ``survey_points`` per axis
-    and the stability maps, with the numbers that set the two schedules apart."""
+    """Schedule (:func:`rcm_kin.simulation.experiments.psm_schedule`, the one the simulations use),
+    export (``out/gain_schedule``), stability surveys on ``survey_points`` per axis and the
+    stability maps, with the numbers that set the two schedules apart."""
     from rcm_kin.control.firmware_export import write_gain_schedule
     from rcm_kin.control.thesis_comparison import compare_with_thesis, schedule_contrast
     from rcm_kin.dynamics.state_space import driven_dynamics
     from rcm_kin.errors import output_folder
     from rcm_kin.report.figures import stability_maps
     from rcm_kin.robot import load_robot
+    from rcm_kin.simulation.experiments import psm_schedule
 
-    c = compare_with_thesis(driven_dynamics(load_robot("psm"), coulomb=False), survey_points)
+    c = compare_with_thesis(driven_dynamics(load_robot("psm"), coulomb=False), survey_points, psm_schedule())
     s = c.model
     folder = output_folder(out / "gain_schedule")
     write_gain_schedule(s, folder, c.ours, gravity_feedforward=True)

@@ -75,37 +75,60 @@ def _animation(run, path: Path, period: float) -> Path:
     return write_html(viz, path)
 
 
-def tracking_section(out: Path, schedule: GainSchedule, trajectory=None, experiments=("sine", "target"),
-                     duration: float | None = None, animate: bool = True) -> TrackingSection:
-    """Simulate ``experiments`` with each controller of :data:`CONTROLLERS` (``duration`` s, default
-    each experiment's own; ``trajectory`` an MTM recording for target following, default the
-    bundled one) and write the figures and animations into ``out/tracking``."""
+@dataclass(frozen=True)
+class TrackingRuns:
+    """One experiment of the tracking section: its rows of the table and its figures."""
+
+    rows: tuple[tuple[str, ...], ...]
+    runs: ExperimentRuns
+
+
+TABLE_HEADER = ("experiment", "controller", "axis", "max / mean", f"from {SETTLED_FROM:g} s", "RMS", "PWM RMS",
+                "saturated (s)", "thesis max / mean")
+
+
+def tracking_experiment(out: Path, schedule: GainSchedule, experiment: str, trajectory=None,
+                        duration: float | None = None, animate: bool = True) -> TrackingRuns:
+    """Simulate ``experiment`` with each controller of :data:`CONTROLLERS` (``duration`` s, default
+    the experiment's own; ``trajectory`` an MTM recording for target following, default the
+    bundled one) and write its figures and animation into ``out/tracking``. The runs are the
+    compiled closed loop (:func:`rcm_kin.simulation.experiments.closed_loop`, equal to the readable
+    reference loop tick for tick)."""
+    from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.report.figures import error_comparison_figure, tracking_figure
     from rcm_kin.simulation.controllers import make_controller
-    from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule
+    from rcm_kin.simulation.experiments import closed_loop, experiment_reference, psm_plant, start_hold
     from rcm_kin.simulation.firmware import FirmwareSettings
-    from rcm_kin.simulation.loop import simulate
 
     settings = FirmwareSettings()
-    plant, _ = psm_plant_and_schedule(period=settings.period)
+    plant = psm_plant(load_drive_parameters(), settings.period, fast=True)
     folder = output_folder(out / "tracking")
-    rows, done = [], []
-    for experiment in experiments:
-        reference = experiment_reference(experiment, settings.period, duration, trajectory=trajectory)
-        results = [simulate(plant.step, make_controller(name, schedule), reference, settings, initial=plant.initial)
-                   for name in CONTROLLERS]
-        figures = [(r.controller, relative(tracking_figure(r, folder / f"{experiment}_{r.controller}.png",
-                                                           title=f"{experiment}, {r.controller}:"), out))
-                   for r in results]
-        rows += [row for r in results for row in _rows(experiment, r)]
-        errors = error_comparison_figure(results, folder / f"{experiment}_errors.png", title=f"{experiment}:")
-        page = _animation(results[-1], folder / f"{experiment}_animation.html", settings.period) if animate else None
-        done.append(ExperimentRuns(experiment, relative(errors, out), tuple(figures),
-                                   relative(page, out) if page else None))
-    header = ["experiment", "controller", "axis", "max / mean", f"from {SETTLED_FROM:g} s", "RMS", "PWM RMS",
-              "saturated (s)", "thesis max / mean"]
+    reference = experiment_reference(experiment, settings.period, duration, trajectory=trajectory)
+    hold = start_hold(reference)
+    results = [closed_loop(plant, make_controller(name, schedule), reference, settings, hold=hold)
+               for name in CONTROLLERS]
+    figures = [(r.controller, relative(tracking_figure(r, folder / f"{experiment}_{r.controller}.png",
+                                                       title=f"{experiment}, {r.controller}:"), out))
+               for r in results]
+    rows = [row for r in results for row in _rows(experiment, r)]
+    errors = error_comparison_figure(results, folder / f"{experiment}_errors.png", title=f"{experiment}:")
+    page = _animation(results[-1], folder / f"{experiment}_animation.html", settings.period) if animate else None
+    return TrackingRuns(Table.of(rows, TABLE_HEADER).rows,
+                        ExperimentRuns(experiment, relative(errors, out), tuple(figures),
+                                       relative(page, out) if page else None))
+
+
+def tracking_from_parts(parts: list[TrackingRuns], trajectory=None) -> TrackingSection:
+    """The section of the experiments ``parts`` (:func:`tracking_experiment`), in their order."""
     return TrackingSection(
-        Table.of(rows, header), tuple(done), CONTROLLERS[-1],
-        "the MTM recording given" if trajectory else "the bundled figure-eight MTM trajectory",
+        Table(TABLE_HEADER, tuple(row for part in parts for row in part.rows)), tuple(p.runs for p in parts),
+        CONTROLLERS[-1], "the MTM recording given" if trajectory else "the bundled figure-eight MTM trajectory",
         SINE_AMPLITUDE_DEG, SINE_CYCLE_S, SETTLED_FROM, 1.0 / FIRMWARE_PERIOD,
         SOURCES["SINE_TRACKING_ERROR_DEG"], FIGURES)
+
+
+def tracking_section(out: Path, schedule: GainSchedule, trajectory=None, experiments=("sine", "target"),
+                     duration: float | None = None, animate: bool = True) -> TrackingSection:
+    """:func:`tracking_experiment` of each of ``experiments``, as one section."""
+    return tracking_from_parts([tracking_experiment(out, schedule, e, trajectory, duration, animate)
+                                for e in experiments], trajectory)

@@ -1,0 +1,92 @@
+"""The report's pieces (what its process pool runs) give the sections the whole functions give,
+with the numbers of the readable reference code: the compiled closed loop in the tracking
+experiments, the schedule designed once per worker, the SOS sampling check computed once."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+
+@pytest.fixture(scope="module")
+def nominal_schedule():
+    from rcm_kin.simulation.experiments import psm_schedule
+
+    return psm_schedule()
+
+
+def test_the_nominal_schedule_is_the_schedule_sections(nominal_schedule, tmp_path):
+    """The pieces that take ``psm_schedule()`` in another worker use the schedule section's own
+    design, number for number (the schedule designed anew here, not taken from the cache)."""
+    from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, schedule_gains
+    from rcm_kin.dynamics.state_space import driven_dynamics
+    from rcm_kin.robot import load_robot
+
+    anew = schedule_gains(driven_dynamics(load_robot("psm"), coulomb=False), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
+    for name in ("k_roll", "k_pitch", "u_hold", "ff_pitch", "A", "B", "A_cl"):
+        assert np.array_equal(getattr(anew, name), getattr(nominal_schedule, name)), name
+
+
+def test_tracking_rows_are_the_reference_loops(nominal_schedule, tmp_path):
+    """The tracking piece runs the compiled loop; its table is the one of the readable reference
+    loop (`simulate` with the readable plant and controllers, from the steady hold of the first
+    pose: the model's holding PWM there), cell for cell."""
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
+    from rcm_kin.report.sections.tracking import CONTROLLERS, _rows, tracking_experiment
+    from rcm_kin.robot import load_robot
+    from rcm_kin.simulation.controllers import Hold, make_controller
+    from rcm_kin.simulation.experiments import experiment_reference, psm_plant
+    from rcm_kin.simulation.firmware import FirmwareSettings
+    from rcm_kin.simulation.loop import firmware_units, simulate
+
+    part = tracking_experiment(tmp_path, nominal_schedule, "sine", duration=1.0, animate=False)
+    settings, params = FirmwareSettings(), load_drive_parameters()
+    plant = psm_plant(params, settings.period)                           # readable, not compiled
+    reference = experiment_reference("sine", settings.period, 1.0)
+    start = reference.position[0]
+    hold = Hold(firmware_units(start), holding_pwm(driven_dynamics(load_robot("psm"), params), start))
+    rows = [tuple(row) for name in CONTROLLERS
+            for row in _rows("sine", simulate(plant.step, make_controller(name, nominal_schedule), reference,
+                                              settings, initial=plant.initial, hold=hold))]
+    assert part.rows == tuple(rows)
+    assert part.runs.animation is None and len(part.runs.runs) == len(CONTROLLERS)
+
+
+def test_tracking_pieces_make_the_whole_section(nominal_schedule, tmp_path):
+    from rcm_kin.report.sections.tracking import tracking_experiment, tracking_from_parts, tracking_section
+
+    whole = tracking_section(tmp_path / "whole", nominal_schedule, experiments=("sine", "step"), duration=0.6,
+                             animate=False)
+    parts = [tracking_experiment(tmp_path / "parts", nominal_schedule, e, duration=0.6, animate=False)
+             for e in ("sine", "step")]
+    assert tracking_from_parts(parts) == whole
+    assert [row[0] for row in whole.table.rows] == ["sine"] * 6 + ["step"] * 6
+
+
+def test_safety_pieces_make_the_whole_section(tmp_path):
+    """Scenarios with a barrier figure in one piece, the others in another, the checks in a third:
+    the section of one call."""
+    from rcm_kin.report.sections.safety import safety_checks, safety_from_parts, safety_section, scenario_runs
+
+    options = dict(chains=("psm",), certificates=False)
+    for folder in ("whole", "parts", "other"):
+        (tmp_path / folder).mkdir()
+    whole = safety_section(tmp_path / "whole", scenarios=("slide", "heart"), filters=("blend", "none"), **options)
+    parts = [scenario_runs(tmp_path / "parts", ("slide",), ("blend", "none")),
+             scenario_runs(tmp_path / "other", ("heart",), ("blend", "none"))]
+    pieced = safety_from_parts(parts, safety_checks(**options))
+    assert pieced.scenarios == whole.scenarios and pieced.rcm == whole.rcm and pieced.certificates is None
+    assert [row[0] for row in pieced.scenarios.rows] == ["slide", "slide", "heart", "heart"]
+    assert pieced.figure == whole.figure == "safety_barriers.png"
+
+
+def test_a_certificate_carries_its_sampling_check():
+    """The report takes the check `find_certificate` made; it is `check_by_sampling` of the certificate."""
+    pytest.importorskip("cvxpy")
+    from rcm_kin.safety.sos import check_by_sampling, find_certificate, thesis_program
+
+    program = thesis_program("1")
+    c = find_certificate(program)
+    assert c.B and c.check == check_by_sampling(c.B, program)
+    assert c.feasible == c.check.passed
