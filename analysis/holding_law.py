@@ -8,12 +8,14 @@ firmware's LQI ``u = -(Kp e + Kd v + Ki E)``, ``e = r - y``, ``v`` the backward 
 angle over the mean logged interval, ``E`` the error integral. The logged PWM is the controller's
 float output, so a least-squares fit of ``u`` on ``[1, y, v, int y dt, t]`` reads the law back
 (``Kp`` the ``y`` coefficient, ``Kd`` minus the ``v`` one, ``Ki`` the ``int y dt`` one; the
-constant and the time slope hold the unknown setpoint and the integral's start). With ``r`` the
-nominal angle, the proportional share of the holding PWM is ``-Kp (r - mean y)`` and the rest is
-the integral's. At (0, 0), where the robot rests between experiments and the sinusoid starts,
-the integral carries the whole holding PWM (the steady hold the simulated experiments start
-from, :class:`rcm_kin.simulation.controllers.Hold`); at the poses visited only for a step, a
-part of it, the proportional term the rest with a steady error of 0.3-0.5 deg.
+constant and the time slope hold the unknown setpoint and the integral's start). Taking the
+setpoint ``r`` as the file name's nominal angle (an assumption: the logs do not record it, and the
+fit's own time slope pins it poorly), the proportional share of the holding PWM is
+``-Kp (r - mean y)`` and the rest is the integral's. At (0, 0), where the robot rests between
+experiments and the sinusoid starts, the integral carries the whole holding PWM with the pitch
+0.03 deg from its setpoint (the steady hold the simulated experiments start from,
+:class:`rcm_kin.simulation.controllers.Hold`); at the poses visited only for a step the pitch
+sits 0.26-0.54 deg from its nominal angle and the split there is not settled.
 """
 
 from __future__ import annotations

@@ -10,10 +10,13 @@ records. Its position column holds raw encoder counts (data README); a negative 
 pitch (hardware sign -1), so the angle is ``-counts / (2000 * 13.333 / 360)`` deg.
 
 At the speed peak the acceleration passes through zero, so the drive torque ``|k_u u|`` balances
-damping, gravity and friction there. Gravity opposes a rising pitch (its holding PWM is negative
-across the range) and Coulomb friction opposes motion, so ``(b_emf + b) v_peak <= |k_u u|``: an
-upper bound on the viscous friction ``b`` beyond the motor's back-EMF, whatever the unknown
-absolute angle (the counts start where the arm was powered on).
+damping, gravity and friction there. Coulomb friction opposes motion, and gravity is assumed to
+oppose the rising pitch at the peak: the model's holding PWM is negative over its whole range
+(-30 to +30 deg: about -100 to -37 PWM), but the swing covers 74 deg from an unknown start (the
+counts start where the arm was powered on) and the peak comes 55 deg after it. Then
+``(b_emf + b) v_peak <= |k_u u|``: an upper bound on the viscous friction ``b`` beyond the
+motor's back-EMF. ``k_u`` carries the calibrated volts per PWM, whose +-15 % uncertainty the
+bound shares.
 """
 
 from __future__ import annotations

@@ -116,7 +116,8 @@ def compare(new: Path, old: Path) -> bool:
     found = sorted(str(p.relative_to(new)) for p in new.rglob("*") if p.is_file())
     ok = names == found
     if not ok:
-        print(f"  files differ: only before {sorted(set(names) - set(found))}, only now {sorted(set(found) - set(names))}")
+        print(f"  files differ: only before {sorted(set(names) - set(found))}, "
+              f"only now {sorted(set(found) - set(names))}")
     for name in sorted(set(names) & set(found)):
         a, b = old / name, new / name
         if name.endswith(".png"):

@@ -40,7 +40,8 @@ from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
 from rcm_kin.dynamics.state_space import drive_constants, driven_dynamics  # noqa: E402
 from rcm_kin.hardware import FIRMWARE_PERIOD, PWM_LIMIT  # noqa: E402
 from rcm_kin.simulation.controllers import CONTROLLERS, Sample, make_controller  # noqa: E402
-from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule, run_experiment  # noqa: E402
+from rcm_kin.simulation.experiments import (experiment_reference, psm_plant_and_schedule, run_experiment,  # noqa: E402
+                                            start_hold)
 from rcm_kin.simulation.fast_path import compiled_period_map, fast_controller, fast_plant  # noqa: E402
 from rcm_kin.simulation.loop import simulate  # noqa: E402
 from rcm_kin.simulation.plant import period_map  # noqa: E402
@@ -153,13 +154,14 @@ def closed_loop(plant, per_tick_plant, schedule, smooth_params, duration: float 
               f"{'compiled/ref':>12}  {'us/tick':>7}  {'smooth compiled':>15}  {'smooth ref':>10}")
     print(header)
     worst = worst_smooth = float("inf")
+    hold = start_hold(reference)                    # every run from the steady hold, as run_experiment
     for name in CONTROLLERS:
         law = make_controller(name, schedule)
         runs = {
             "compiled": lambda: run_experiment("sine", name, duration=duration),
             "per-tick": lambda: simulate(per_tick_plant.step, fast_controller(law), reference,
-                                         initial=per_tick_plant.initial),
-            "reference": lambda: simulate(plant.step, law, reference, initial=plant.initial),
+                                         initial=per_tick_plant.initial, hold=hold),
+            "reference": lambda: simulate(plant.step, law, reference, initial=plant.initial, hold=hold),
             "smooth compiled": lambda: run_experiment("sine", name, duration=duration, params=smooth_params),
             "smooth ref": lambda: run_experiment("sine", name, duration=duration, params=smooth_params, fast=False),
         }

@@ -59,10 +59,10 @@ def test_built_once_then_loaded_from_the_cache(cache, model):
     comp.compiled(model.gravity)
     libraries = list(cache.glob("*.so"))
     assert len(libraries) == 1 and libraries[0].name.startswith("gravity_")
-    stamp = libraries[0].stat().st_mtime_ns
+    inode = libraries[0].stat().st_ino                       # a rebuild would replace the file
     comp._load.cache_clear()
     comp.compiled(model.gravity)
-    assert list(cache.glob("*.so")) == libraries and libraries[0].stat().st_mtime_ns == stamp
+    assert list(cache.glob("*.so")) == libraries and libraries[0].stat().st_ino == inode
     assert [p for p in cache.iterdir() if p.is_dir()] == []   # no build folder left behind
 
 
@@ -80,6 +80,22 @@ def test_key_follows_the_function_the_compiler_and_the_machine(model, monkeypatc
 
 
 @needs_compiler
+@needs_compiler
+def test_the_cache_keeps_the_most_recently_used_libraries(cache, monkeypatch):
+    """Beyond the limit the least recently used library goes; using one (a cache hit) makes it
+    recent again, and the one just built is never deleted."""
+    monkeypatch.setattr(comp, "CACHE_LIBRARIES", 2)
+    command = comp.compiler_command()
+    def build(k: int):
+        return comp.build_library(f"f{k}", f"{k:032d}", f"double f{k}(void) {{ return {k}; }}\n", command)
+    first, second = build(1), build(2)
+    os.utime(first, (1, 1))                                  # make the first the oldest, then use it
+    os.utime(second, (2, 2))
+    assert build(1) == first and first.stat().st_mtime > 2   # a hit touches it
+    third = build(3)
+    assert sorted(p.name for p in cache.glob("*.so")) == sorted([first.name, third.name])
+
+
 def test_a_truncated_cached_library_is_built_anew(cache, model):
     """A cached library cut short (a full disk, a killed copy) is deleted and rebuilt on the next
     call, which then gives the interpreted function's values (1e-12)."""

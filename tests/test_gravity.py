@@ -251,6 +251,18 @@ def test_torque_map_npz_holds_the_csv_numbers(tmp_path, capsys):
                                    rtol=0, atol=1e-12)
 
 
+def test_write_npz_writes_the_path_it_returns(tmp_path):
+    """Whatever the suffix, the file is the one named and returned (np.savez alone would append
+    ".npz" to another), and it loads as the table."""
+    from rcm_kin.statics.gravity_map import gravity_map, table_header, write_npz
+
+    gmap = gravity_map(load_robot("psm"), load_drive_parameters(), [0.0, 10.0], [0.0], [0.1])
+    path = write_npz(gmap, tmp_path / "map.bin")
+    assert path == tmp_path / "map.bin" and path.is_file() and not (tmp_path / "map.bin.npz").exists()
+    with np.load(path) as npz:
+        assert npz.files == table_header() and npz["roll_deg"].tolist() == [0.0, 10.0]
+
+
 def test_torque_map_refuses_an_unknown_table_format(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_:
         main(["torque-map", "psm", "--roll=0:10:2", "--format", "parquet", "--out", str(tmp_path / "m")])

@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rcm_kin.errors import RcmKinError
+
 
 @pytest.fixture(scope="module")
 def nominal_schedule():
@@ -53,32 +55,26 @@ def test_tracking_rows_are_the_reference_loops(nominal_schedule, tmp_path):
     assert part.runs.animation is None and len(part.runs.runs) == len(CONTROLLERS)
 
 
-def test_tracking_pieces_make_the_whole_section(nominal_schedule, tmp_path):
-    from rcm_kin.report.sections.tracking import tracking_experiment, tracking_from_parts, tracking_section
-
-    whole = tracking_section(tmp_path / "whole", nominal_schedule, experiments=("sine", "step"), duration=0.6,
-                             animate=False)
-    parts = [tracking_experiment(tmp_path / "parts", nominal_schedule, e, duration=0.6, animate=False)
-             for e in ("sine", "step")]
-    assert tracking_from_parts(parts) == whole
-    assert [row[0] for row in whole.table.rows] == ["sine"] * 6 + ["step"] * 6
-
-
 def test_safety_pieces_make_the_whole_section(tmp_path):
-    """Scenarios with a barrier figure in one piece, the others in another, the checks in a third:
-    the section of one call."""
+    """As the report splits them: the scenarios with a barrier figure in one piece, the PSM's in
+    another, the checks in a third, give the section of one call; two pieces that each drew a
+    barrier figure are refused (each figure holds only its own scenarios)."""
     from rcm_kin.report.sections.safety import safety_checks, safety_from_parts, safety_section, scenario_runs
 
     options = dict(chains=("psm",), certificates=False)
     for folder in ("whole", "parts", "other"):
         (tmp_path / folder).mkdir()
-    whole = safety_section(tmp_path / "whole", scenarios=("slide", "heart"), filters=("blend", "none"), **options)
-    parts = [scenario_runs(tmp_path / "parts", ("slide",), ("blend", "none")),
-             scenario_runs(tmp_path / "other", ("heart",), ("blend", "none"))]
+    whole = safety_section(tmp_path / "whole", scenarios=("slide", "heart", "psm"), filters=("none",), **options)
+    parts = [scenario_runs(tmp_path / "parts", ("slide", "heart"), ("none",)),
+             scenario_runs(tmp_path / "other", ("psm",), ("none",))]
     pieced = safety_from_parts(parts, safety_checks(**options))
-    assert pieced.scenarios == whole.scenarios and pieced.rcm == whole.rcm and pieced.certificates is None
-    assert [row[0] for row in pieced.scenarios.rows] == ["slide", "slide", "heart", "heart"]
-    assert pieced.figure == whole.figure == "safety_barriers.png"
+    assert pieced == whole
+    assert [row[0] for row in pieced.scenarios.rows] == ["slide", "heart", "psm"]
+    assert pieced.figure == "safety_barriers.png" and pieced.psm_no_go_mm is not None
+    split = [scenario_runs(tmp_path / "parts", ("slide",), ("none",)),
+             scenario_runs(tmp_path / "other", ("heart",), ("none",))]
+    with pytest.raises(RcmKinError, match="one part"):
+        safety_from_parts(split, safety_checks(**options))
 
 
 def test_a_certificate_carries_its_sampling_check():

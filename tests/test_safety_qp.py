@@ -152,8 +152,9 @@ def scenario_steps(n=300):
     Ad, Bd = zero_order_hold(A, B, dt)
     e = Ellipsoid(np.zeros(3), np.array([0.03, 0.06, 0.03]))
     rng = np.random.default_rng(5)
-    return [(rng.uniform(-0.2, 0.2, 3), [barrier_terms(e, run.state[k], (Ad @ run.state[k] - run.state[k]) / dt, Bd / dt)])
-            for k in rng.choice(len(run.time), n, replace=False)]
+    def terms(x):
+        return [barrier_terms(e, x, (Ad @ x - x) / dt, Bd / dt)]
+    return [(rng.uniform(-0.2, 0.2, 3), terms(run.state[k])) for k in rng.choice(len(run.time), n, replace=False)]
 
 
 def test_prebuilt_qp_on_the_scenarios_steps_is_the_exact_optimum():

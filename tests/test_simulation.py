@@ -245,15 +245,23 @@ def test_thesis_controller_applies_the_flashed_law_and_signs():
     assert u[1] == pytest.approx(-(kp[0] * e[1] + kp[1] * v[1] + kp[2] * e[1] * T), abs=1e-12)
 
 
-def test_integrals_start_charged_with_the_holding_pwm():
+@pytest.mark.parametrize("varying_ki", [False, True])
+def test_integrals_start_charged_with_the_holding_pwm(varying_ki):
     """At the hold pose (off the gain grids) with zero error, velocity and reference motion, every
     controller with an integral sends exactly the holding PWM from its initial memory and keeps
     that memory (nothing to integrate); the P controller, which has none, sends nothing. Without
-    a hold the integrals start at zero."""
+    a hold the integrals start at zero. With a pitch Ki that varies over the grid (the designed
+    one is uniform), the Ki at the pose (scheduled) and at (0, 0) (lqr-fixed) differ."""
+    from dataclasses import replace
+
     from rcm_kin.simulation.controllers import CONTROLLERS, Hold, Sample
     from rcm_kin.simulation.experiments import psm_plant_and_schedule
 
     _, schedule = psm_plant_and_schedule(period=T)
+    if varying_ki:
+        k_pitch = np.array(schedule.k_pitch, dtype=float)
+        k_pitch[..., 2] *= 1.0 + 0.3 * np.arange(k_pitch[..., 2].size).reshape(k_pitch.shape[:2])
+        schedule = replace(schedule, k_pitch=k_pitch)
     pose = np.array([10.0, -7.0, 0.08])
     hold = Hold(pose, np.array([12.5, -83.0, 0.0]))
     sample = Sample(pose, np.zeros(3), pose, np.zeros(3), np.zeros(3), T, np.array([100.0, 150.0, 100.0]))
@@ -269,6 +277,28 @@ def test_integrals_start_charged_with_the_holding_pwm():
         integrals = slice(0, 2) if name == "pid" else slice(0, 1)
         np.testing.assert_allclose(after[integrals], memory[integrals], rtol=0, atol=1e-12, err_msg=name)
         assert np.all(c.initial_memory()[integrals] == 0.0), name
+
+
+def test_a_hold_beyond_the_pwm_limit_charges_the_integral_to_the_limit(params):
+    """Conditional integration never carries more than the PWM limit: with the pitch limited below
+    its holding PWM, the thesis law's first command (at the pose, zero error and velocity) is the
+    limit itself, in the readable loop and in the one runner (compiled where it can be)."""
+    from rcm_kin.simulation.controllers import Hold, ThesisController
+    from rcm_kin.simulation.experiments import closed_loop, psm_plant_and_schedule
+    from rcm_kin.simulation.references import Reference
+
+    n = 4
+    ref = Reference(np.arange(n) * T, np.tile([0.0, 0.0, 0.08], (n, 1)), np.zeros((n, 3)), np.zeros((n, 3)))
+    hold = Hold(np.array([0.0, 0.0, 0.08]), np.array([0.0, -79.0, 0.0]))
+    settings = FirmwareSettings(pwm_limit=np.array([100.0, 60.0, 100.0]))
+    assert hold.within(settings.pwm_limit).pwm.tolist() == [0.0, -60.0, 0.0]
+    plant, _ = psm_plant_and_schedule(params, T)
+    first = simulate(plant.step, ThesisController(), ref, settings, settle=0.0, initial=plant.initial, hold=hold)
+    assert first.command[0, 1] == pytest.approx(-60.0, abs=1e-9)
+    slow = simulate(plant.step, ThesisController(), ref, settings, initial=plant.initial, hold=hold)
+    fast_plant, _ = psm_plant_and_schedule(params, T, fast=True)
+    fast = closed_loop(fast_plant, ThesisController(), ref, settings, hold=hold)
+    np.testing.assert_allclose(fast.command, slow.command, rtol=0, atol=1e-9)
 
 
 def test_the_sinusoid_starts_from_the_steady_hold_of_its_first_pose(psm, params):

@@ -21,7 +21,8 @@ def add_safety(sub) -> None:
                    help="ellipsoid: 3-D no-go ellipsoid (radii 30/60/30 mm); slide: workspace [-0.10, 0.05] m; "
                         "heart: beating-heart fixture; psm: our PSM teleoperated towards a 1.5 mm no-go ellipsoid")
     s.add_argument("--filter", choices=("blend", "qp", "none"), default="blend",
-                   help="blend: the thesis's sigma k0 + (1 - sigma) u; qp: CBF-QP (DAQP, exact active set); none (default blend)")
+                   help="blend: the thesis's sigma k0 + (1 - sigma) u; qp: CBF-QP (DAQP, exact active set); "
+                        "none (default blend)")
     s.add_argument("--kappa", type=finite(0, 100, "m", open_lo=True),
                    help="aggressiveness of k0 in m, in (0, 100] (default 1; psm 0.01)")
     s.add_argument("--trajectory", type=path_text, help="psm: MTM recording CSV (default: the bundled figure-eight)")

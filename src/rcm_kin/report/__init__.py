@@ -92,7 +92,9 @@ def report_jobs(out: Path, data, map_points: int) -> list[Job]:
     from rcm_kin.report.sections.robots import robots_section
     from rcm_kin.report.sections.robustness import robustness_section
     from rcm_kin.report.sections.safety import safety_checks, scenario_runs
+    from rcm_kin.safety.scenarios import SCENARIOS
 
+    linear = tuple(s for s in SCENARIOS if s != "psm")      # the scenarios with a barrier figure, in one piece
     recording = _mtm_recording(data)
     jobs = []
     if data is not None:
@@ -103,15 +105,12 @@ def report_jobs(out: Path, data, map_points: int) -> list[Job]:
         Job("tracking: target", _tracking_part, (out, "target", recording)),
         Job("safety: PSM teleoperation", scenario_runs, (out, ("psm",))),
         Job("robustness", robustness_section, (out,)),
-        Job("safety: linear scenarios", scenario_runs, (out, LINEAR_SCENARIOS)),
+        Job("safety: linear scenarios", scenario_runs, (out, linear)),
         Job("effort maps", gravity_section, (out, map_points)),
         Job("gain schedule, linear models", _schedule_sections, (out,)),
         Job("safety: certificates, RCM", safety_checks, ()),
         Job("MuJoCo", mujoco_section, (out,)), Job("robot views", robots_section, (out,)),
         Job("models checked", models_section, (out,))]
-
-
-LINEAR_SCENARIOS = ("ellipsoid", "slide", "heart")     # the safety scenarios with a barrier figure
 
 
 def _timed(function: Callable, arguments: tuple) -> JobResult:

@@ -21,15 +21,15 @@ import numpy as np
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, schedule_gains
 from rcm_kin.control.weights import Weights
 from rcm_kin.dynamics.drive import DriveParameters
-from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
+from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import PWM_LIMIT
 from rcm_kin.robot import load_robot
 from rcm_kin.robustness.task import linear_law, loop_margins, sample_plant
-from rcm_kin.simulation.controllers import Hold, make_controller
-from rcm_kin.simulation.experiments import closed_loop, experiment_reference
+from rcm_kin.simulation.controllers import make_controller
+from rcm_kin.simulation.experiments import closed_loop, experiment_reference, start_hold
 from rcm_kin.simulation.firmware import FirmwareSettings
-from rcm_kin.simulation.loop import firmware_units, tracking_metrics
+from rcm_kin.simulation.loop import tracking_metrics
 from rcm_kin.statics.counterweights import design_counterweights, workspace_grid
 
 
@@ -99,7 +99,7 @@ def weights_batch(batch: list[tuple[float, float]], params: DriveParameters, exp
     model = driven_dynamics(psm, params, coulomb=False)
     plant = sample_plant(params, settings.period)
     reference = experiment_reference(experiment, settings.period, duration)
-    hold = Hold(firmware_units(reference.position[0]), holding_pwm(model, reference.position[0]))
+    hold = start_hold(reference, model=model)
     rows = []
     for error_deg, fraction in batch:
         schedule = schedule_gains(model, THESIS_ROLL_DEG, THESIS_PITCH_DEG, weights=budget_weights(error_deg, fraction))

@@ -36,16 +36,16 @@ from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.stability import damping_ratios, firmware_loop_matrix
 from rcm_kin.control.thesis_reference import K_PITCH, K_ROLL
 from rcm_kin.dynamics.drive import DriveParameters
-from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics, holding_pwm
+from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
 from rcm_kin.errors import JointLimitError, NonFiniteResultError, RcmKinError
 from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS
 from rcm_kin.robot import load_robot
 from rcm_kin.robustness.sampling import Uncertain, draw, with_values
 from rcm_kin.simulation.controllers import CONTROLLERS, Hold, make_controller
 from rcm_kin.simulation.experiments import (check_in_limits, closed_loop, experiment_reference, psm_plant,
-                                            psm_plant_and_schedule)
+                                            psm_plant_and_schedule, start_hold)
 from rcm_kin.simulation.firmware import FirmwareSettings
-from rcm_kin.simulation.loop import AXES, SimulationResult, firmware_units, tracking_metrics
+from rcm_kin.simulation.loop import AXES, SimulationResult, tracking_metrics
 
 SURVEY_POINTS = 5       # per axis of the stability grid
 
@@ -184,7 +184,7 @@ def run_sample(study: Study, index: int, seed: np.random.SeedSequence) -> Sample
     params = with_values(study.params, study.uncertain, values)
     plant = sample_plant(params, settings.period)
     model = driven_dynamics(load_robot("psm"), params, coulomb=False)
-    hold = Hold(firmware_units(reference.position[0]), holding_pwm(model, reference.position[0]))
+    hold = start_hold(reference, model=model)
     n = len(study.controllers)
     max_error, mean_error = np.full((n, 2), np.nan), np.full((n, 2), np.nan)
     saturated, unstable = np.zeros((n, 2), dtype=bool), np.zeros(n, dtype=bool)

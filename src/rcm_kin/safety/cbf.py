@@ -25,7 +25,8 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.safety.barriers import Barrier
 
 LGB_ZERO = 1e-12     # |LgB|^2 below this: the barrier cannot be acted on here (k0 = 0)
-PRIMAL_TOL = 1e-12   # DAQP: a constraint violated by more than this (inputs' units, rows normalised) enters the active set
+PRIMAL_TOL = 1e-12   # DAQP: a constraint violated by more than this (inputs' units, rows normalised)
+                     # enters the active set
 DAQP_INF = 1e30      # DAQP reads a bound at or beyond this as none
 DAQP_OPTIMAL, DAQP_INFEASIBLE = 1, -1   # DAQP exit flags
 
@@ -111,12 +112,16 @@ def _barrier_rows(u_nominal: np.ndarray, terms: list[BarrierTerms], alpha: float
     """``LgB_i u <= -LfB_i - alpha B_i`` as rows ``(k, inputs)`` and bounds ``(k,)``, each row
     scaled to unit length (the same half-space; DAQP's feasibility tolerance then is a distance
     in the inputs' units); a row ``LgB_i = 0`` stays as it is: ``0 <= bound``, met or infeasible.
-    Any datum (or ``u_nominal``) NaN or inf: a clear error (the sum is finite exactly then)."""
+    Any datum (or ``u_nominal``) NaN or inf: a clear error (one finiteness test of a sum of them,
+    which also refuses data so large, beyond about 1e150, that the row norms overflow)."""
     rows = np.array([t.lg for t in terms], dtype=float).reshape(len(terms), u_nominal.size)
     bounds = np.array([-t.lf - alpha * t.value for t in terms], dtype=float)
-    norms = np.sqrt(np.square(rows).sum(axis=1))
-    if not math.isfinite(float(norms.sum() + bounds.sum() + u_nominal.sum())):
-        raise RcmKinError("the CBF-QP data are not finite here (NaN or inf in u_nominal, B, LfB or LgB)")
+    with np.errstate(over="ignore", invalid="ignore"):
+        norms = np.sqrt(np.square(rows).sum(axis=1))
+        total = float(norms.sum() + bounds.sum() + u_nominal.sum())
+    if not math.isfinite(total):
+        raise RcmKinError("the CBF-QP data are not finite here (NaN or inf in u_nominal, B, LfB or LgB, or values "
+                          "beyond about 1e150)")
     norms[norms == 0] = 1.0
     return rows / norms[:, None], bounds / norms
 
@@ -129,7 +134,8 @@ def solve_cbf_qp(problem: CbfQp, u_nominal, terms: list[BarrierTerms], alpha: fl
     u_nominal = np.asarray(u_nominal, dtype=float)
     m, k = problem.inputs, problem.barriers
     if u_nominal.size != m or len(terms) != k:
-        raise RcmKinError(f"this CBF-QP was built for {m} inputs and {k} barriers, got {u_nominal.size} and {len(terms)}")
+        raise RcmKinError(f"this CBF-QP was built for {m} inputs and {k} barriers, "
+                          f"got {u_nominal.size} and {len(terms)}")
     rows, bounds = _barrier_rows(u_nominal, terms, alpha)
     u, _, exitflag, _ = daqp.solve(problem.hessian, -2 * u_nominal, rows, np.concatenate([problem.u_max, bounds]),
                                    problem.lower, problem.sense, primal_tol=PRIMAL_TOL)

@@ -15,7 +15,7 @@ integral starts it where the law, at zero error and rest, sends the PWM that hol
 robot's firmware carries its holding effort in the integral once it has held a pose long enough:
 in the roll-step log at (0, 0), where the robot rests between experiments and the sinusoid
 starts, the pitch, held by ``u = -(220.7 e + 0.32 v + Ki E)``, takes 92 of its 86 PWM from the
-integral (``analysis/holding_law.py``; at the poses visited only for a step, -22 to +14 PWM). With the
+integral (``analysis/holding_law.py``; the poses visited only for a step had not settled). With the
 thesis's ``Ki`` of about 0.15 PWM/(deg s) that charge takes minutes to build, so a run that began
 with an empty integral would spend its whole length with the holding PWM missing.
 """
@@ -56,6 +56,11 @@ class Hold:
 
     position: np.ndarray                # (3,) deg, deg, m
     pwm: np.ndarray                     # (3,) counts
+
+    def within(self, limit: np.ndarray) -> Hold:
+        """The hold with its PWM saturated at ``limit`` (3,) counts: conditional integration never
+        charges an integral beyond what reaches the limit."""
+        return Hold(self.position, np.clip(self.pwm, -np.asarray(limit), np.asarray(limit)))
 
 
 @runtime_checkable

@@ -15,7 +15,7 @@ import numpy as np
 
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, schedule_gains
 from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
-from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
+from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics, holding_pwm
 from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.robot import load_robot
 from rcm_kin.simulation.compiled_loop import (CompiledPlant, compiled_drive_train, compiled_smooth, loop_law,
@@ -45,7 +45,7 @@ def experiment_reference(experiment: str, period: float, duration: float | None 
 
 _BUILT: dict[str, object] = {}               # repr(params, period, substeps, fast) -> plant
 _SCHEDULES: dict[str, GainSchedule] = {}     # repr(params) -> schedule (about 0.5 s each)
-_GRAVITY: dict[str, object] = {}             # repr(params) -> DrivenDynamics (its gravity gives the holding PWM)
+_GRAVITY: dict[str, DrivenDynamics] = {}     # repr(params) -> model (its gravity gives the holding PWM)
 
 
 def psm_plant(params: DriveParameters, period: float, substeps: int = 4, fast: bool = False):
@@ -104,14 +104,18 @@ def psm_plant_and_schedule(params: DriveParameters | None = None, period: float 
     return _plant_and_schedule(params or load_drive_parameters(), period, substeps, fast)
 
 
-def start_hold(reference: Reference, params: DriveParameters | None = None) -> Hold:
-    """The steady hold of ``reference``'s first pose with the model of ``params`` (default: the
-    shipped set): the pose in firmware units and its holding PWM (``g(q) / k_u``, counts)."""
-    params = params or load_drive_parameters()
-    key = repr(params)
-    if key not in _GRAVITY:
-        _GRAVITY[key] = driven_dynamics(load_robot("psm"), params)
-    return Hold(firmware_units(reference.position[0]), holding_pwm(_GRAVITY[key], reference.position[0]))
+def start_hold(reference: Reference, params: DriveParameters | None = None,
+               model: DrivenDynamics | None = None) -> Hold:
+    """The steady hold of ``reference``'s first pose: the pose in firmware units and its holding
+    PWM (``g(q) / k_u``, counts) with ``model``, else the model of ``params`` (default: the
+    shipped set)."""
+    if model is None:
+        params = params or load_drive_parameters()
+        key = repr(params)
+        if key not in _GRAVITY:
+            _GRAVITY[key] = driven_dynamics(load_robot("psm"), params)
+        model = _GRAVITY[key]
+    return Hold(firmware_units(reference.position[0]), holding_pwm(model, reference.position[0]))
 
 
 def run_experiment(experiment: str, controller: str, duration: float | None = None,
@@ -135,14 +139,16 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
 def closed_loop(plant, controller: Controller, reference: Reference, settings: FirmwareSettings | None = None,
                 seed: int = 0, progress: bool = False, fast: bool = True, hold: Hold | None = None) -> SimulationResult:
     """``controller`` on ``plant`` (:func:`psm_plant`) along ``reference``, from rest at its first
-    pose, the controller's integrals charged to ``hold`` (:func:`start_hold`) when given. ``fast``: in one compiled kernel when the plant is a
+    pose, the controller's integrals charged to ``hold`` (:func:`start_hold`) when given. ``fast``:
+    in one compiled kernel when the plant is a
     :class:`~rcm_kin.simulation.compiled_loop.CompiledPlant` and the kernel knows the controller,
     else tick by tick with the controller's fast path (:func:`fast_controller`); ``False``: the
     readable reference loop (:func:`rcm_kin.simulation.loop.simulate`). The same result either way
     (the tests hold the paths to each other tick for tick). A state that leaves the finite numbers
     raises :class:`~rcm_kin.errors.NonFiniteResultError`."""
     settings = settings or FirmwareSettings()
-    arrays = loop_law(controller, hold) if fast and isinstance(plant, CompiledPlant) else None
+    charged = hold.within(settings.pwm_limit) if hold else None
+    arrays = loop_law(controller, charged) if fast and isinstance(plant, CompiledPlant) else None
     if arrays is not None:
         return simulate_compiled(plant, arrays, controller.name, reference, settings, seed=seed, progress=progress)
     return simulate(plant.step, fast_controller(controller) if fast else controller, reference, settings, seed=seed,

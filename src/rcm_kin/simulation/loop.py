@@ -69,7 +69,8 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: C
              hold: Hold | None = None) -> SimulationResult:
     """Run ``controller`` on the plant ``step(x, u) -> x`` (one period; ``x[:3]`` the positions the
     encoders see, SI) along ``reference``, from rest at the first reference pose: ``initial(q)``
-    when given, else ``x = [q; 0]``; the controller's memory ``initial_memory(hold)``. A state that leaves the finite numbers raises
+    when given, else ``x = [q; 0]``; the controller's memory ``initial_memory(hold)``, the hold's
+    PWM saturated at the limits. A state that leaves the finite numbers raises
     :class:`~rcm_kin.errors.NonFiniteResultError` (the simulation diverged).
     Deterministic for a given ``seed`` (which only drives the optional encoder noise)."""
     settings = settings or FirmwareSettings()
@@ -82,7 +83,7 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: C
     zero = np.zeros(3)
     previous = encoder_reading(settings, firmware_units(x[:3]), rng)
     filtered = np.zeros(3)
-    memory = controller.initial_memory(hold)
+    memory = controller.initial_memory(hold.within(settings.pwm_limit) if hold else None)
     log = {key: np.empty((n, 3)) for key in ("measured", "position", "command", "pwm")}
     for k in tqdm(range(-n_settle, n), desc=f"simulate {controller.name}", unit="tick", disable=not progress,
                   leave=False):

@@ -35,8 +35,9 @@ def check_map_size(poses: int) -> None:
     """Refuse a map of more than :data:`MAX_POSES` poses before anything is allocated, saying what it
     would need."""
     if poses > MAX_POSES:
-        raise WorkLimitError(f"a map of {poses:,} poses would need about {poses * BYTES_PER_POSE / 1e9:.3g} GB; "
-                          f"the limit is {MAX_POSES:,} poses (e.g. 1001 x 1001): use fewer points per axis")
+        raise WorkLimitError(f"a map of {poses:,} poses is beyond the {MAX_POSES:,} (1001 x 1001) this command is "
+                             f"measured for (about {MAX_POSES * BYTES_PER_POSE / 1e6:.0f} MB at the limit): use fewer "
+                             "points per axis")
 
 
 @dataclass(frozen=True)
@@ -178,7 +179,8 @@ def write_npz(gmap: GravityMap, path: str | Path) -> Path:
     columns.update({f"{q}_{j}": getattr(e, q).reshape(-1, 3)[:, k]
                     for q in ("tau", "voltage", "pwm") for k, j in enumerate(DRIVEN)})
     try:
-        np.savez(path, **{name: columns[name] for name in table_header()})
+        with path.open("wb") as fh:                      # np.savez would append ".npz" to another suffix
+            np.savez(fh, **{name: columns[name] for name in table_header()})
     except OSError as exc:
         raise RcmKinError(f"cannot write {path}: {exc.strerror}") from None
     return path

@@ -41,6 +41,8 @@ import numpy as np
 from rcm_kin.errors import RcmKinError
 
 COMPILE_FLAGS = ("-O2", "-fPIC", "-shared")
+CACHE_LIBRARIES = 256     # compiled libraries kept; beyond it the least recently used go (robustness
+                          # samples compile one model per drawn parameter set)
 
 
 def cache_folder() -> Path:
@@ -141,12 +143,19 @@ def _build(fn: ca.Function, command: list[str]) -> Path:
 def build_library(name: str, key: str, source: str, command: list[str],
                   flags: tuple[str, ...] = COMPILE_FLAGS) -> Path:
     """The shared library ``name_<key>.so`` in the cache folder, compiled from the C ``source``
-    with ``command`` and ``flags`` first if absent (written atomically, so concurrent processes never load a
-    half-written file). A compiler failure is an :class:`RcmKinError` with its first line."""
+    with ``command`` and ``flags`` first if absent (written atomically, so concurrent processes never
+    load a half-written file). The folder keeps the :data:`CACHE_LIBRARIES` most recently used
+    libraries (a use touches the file). A compiler failure is an :class:`RcmKinError` with its
+    first line."""
     folder = cache_folder()
     library = folder / f"{name}_{key[:32]}.so"
     if library.exists():
-        return library
+        try:
+            os.utime(library)
+        except OSError:                 # pruned by another process just now: built again below
+            pass
+        else:
+            return library
     folder.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=folder) as work:
         path = Path(work) / f"{name}.c"
@@ -158,7 +167,25 @@ def build_library(name: str, key: str, source: str, command: list[str],
             first = (run.stderr.strip().splitlines() or ["no message"])[0]
             raise RcmKinError(f"compiling {name} with {command[0]} failed: {first}")
         target.replace(library)
+    prune_cache(folder, keep=library)
     return library
+
+
+def prune_cache(folder: Path, keep: Path, limit: int | None = None) -> None:
+    """Delete the least recently used ``*.so`` in ``folder`` beyond ``limit`` (default
+    :data:`CACHE_LIBRARIES`), never ``keep``. A library another process has loaded stays valid
+    (its mapping outlives the name); one about to be loaded is rebuilt (:func:`loaded_library`)."""
+    limit = CACHE_LIBRARIES if limit is None else limit
+    libraries = []
+    for path in folder.glob("*.so"):
+        try:
+            libraries.append((path.stat().st_mtime, path))
+        except OSError:
+            continue
+    libraries.sort(reverse=True)
+    for _, path in libraries[limit:]:
+        if path != keep:
+            path.unlink(missing_ok=True)
 
 
 def _merged(fn: ca.Function) -> ca.Function:

@@ -10,6 +10,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from rcm_kin.errors import RcmKinError
 from rcm_kin.report.render import Table, relative
 from rcm_kin.robot import load_robot
 
@@ -108,8 +109,12 @@ def safety_checks(chains=RCM_CHAINS, certificates: bool = True, programs=None) -
 
 def safety_from_parts(runs: list[ScenarioRuns], checks: SafetyChecks) -> SafetySection:
     """The section of scenario runs (rows in the order of ``runs``; the report runs the scenarios
-    with a barrier figure in one part, the PSM's in another) and the checks."""
-    figure = next((r.figure for r in runs if r.figure), None)
+    with a barrier figure in one part, the PSM's in another) and the checks. Two parts with a
+    barrier figure are refused: each draws only its own scenarios into the same file name."""
+    figures = [r.figure for r in runs if r.figure]
+    if len(figures) > 1:
+        raise RcmKinError("the scenarios with a barrier figure must run in one part: each part draws only its own")
+    figure = figures[0] if figures else None
     psm = next((r for r in runs if r.psm_no_go_mm is not None), None)
     return SafetySection(Table(SCENARIO_HEADER, tuple(row for r in runs for row in r.rows)), figure,
                          psm.psm_no_go_mm if psm else None, psm.psm_allowance_mm if psm else None, checks.rcm,
