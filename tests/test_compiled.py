@@ -80,7 +80,6 @@ def test_key_follows_the_function_the_compiler_and_the_machine(model, monkeypatc
 
 
 @needs_compiler
-@needs_compiler
 def test_the_cache_keeps_the_most_recently_used_libraries(cache, monkeypatch):
     """Beyond the limit the least recently used library goes; using one (a cache hit) makes it
     recent again, and the one just built is never deleted."""
@@ -96,6 +95,7 @@ def test_the_cache_keeps_the_most_recently_used_libraries(cache, monkeypatch):
     assert sorted(p.name for p in cache.glob("*.so")) == sorted([first.name, third.name])
 
 
+@needs_compiler
 def test_a_truncated_cached_library_is_built_anew(cache, model):
     """A cached library cut short (a full disk, a killed copy) is deleted and rebuilt on the next
     call, which then gives the interpreted function's values (1e-12)."""
