@@ -37,7 +37,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
-from common import report  # noqa: E402
+from common import best_of, report  # noqa: E402
 
 from rcm_kin import load_robot  # noqa: E402
 from rcm_kin.cli import main as cli_main  # noqa: E402
@@ -45,14 +45,6 @@ from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
 from rcm_kin.dynamics.gravity import gravity_batch  # noqa: E402
 from rcm_kin.statics.gravity_map import driven_gravity, gravity_map  # noqa: E402
 
-
-def best_of(fn, repeats: int = 3) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - start)
-    return best
 
 
 def poses(n: int) -> np.ndarray:

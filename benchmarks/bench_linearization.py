@@ -20,12 +20,11 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS
 
-import time  # noqa: E402
 
 import casadi as ca  # noqa: E402
 import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
-from common import report  # noqa: E402
+from common import best_of, report  # noqa: E402
 
 from rcm_kin import load_robot  # noqa: E402
 from rcm_kin.closure.reduced import tree_configuration  # noqa: E402
@@ -35,14 +34,6 @@ from rcm_kin.dynamics.drive import DRIVEN, load_drive_parameters  # noqa: E402
 from rcm_kin.dynamics.state_space import driven_dynamics  # noqa: E402
 from rcm_kin.symbolic.compiled import map_points  # noqa: E402
 
-
-def best_of(fn, repeats: int = 3) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - start)
-    return best
 
 
 def main() -> None:

@@ -27,12 +27,11 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import time  # noqa: E402
 from dataclasses import replace  # noqa: E402
 
 import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
-from common import per_call, report  # noqa: E402
+from common import best_of, per_call, report  # noqa: E402
 
 from rcm_kin import load_robot  # noqa: E402
 from rcm_kin.closure.reduced import tree_configuration  # noqa: E402
@@ -131,15 +130,6 @@ def main() -> None:
     closed_loop(plant, per_tick_plant, schedule, smooth_params)
 
 
-def best_time(run, repeats: int = 3) -> float:
-    """Best wall-clock seconds of ``run()`` over ``repeats`` (after one warm-up run outside)."""
-    best = float("inf")
-    for _ in range(repeats):
-        start = time.perf_counter()
-        run()
-        best = min(best, time.perf_counter() - start)
-    return best
-
 
 def closed_loop(plant, per_tick_plant, schedule, smooth_params, duration: float = 6.0) -> None:
     """Real-time factor (simulated s per wall s) per controller, the sine experiment, same run:
@@ -168,7 +158,7 @@ def closed_loop(plant, per_tick_plant, schedule, smooth_params, duration: float 
         run_experiment("sine", name, duration=0.2)                               # warm-up (builds, loads)
         run_experiment("sine", name, duration=0.2, params=smooth_params)
         run_experiment("sine", name, duration=0.2, params=smooth_params, fast=False)
-        factor = {key: simulated / best_time(run) for key, run in runs.items()}
+        factor = {key: simulated / best_of(run) for key, run in runs.items()}
         worst = min(worst, factor["compiled"])
         print(f"{name:18}  {factor['compiled']:11.0f} x  {factor['per-tick']:11.1f} x  {factor['reference']:8.1f} x  "
               f"{factor['compiled'] / factor['reference']:10.0f} x  {1e6 * FIRMWARE_PERIOD / factor['compiled']:7.2f}"

@@ -1,4 +1,4 @@
-"""Timing helper for the benchmark scripts: best-of-repeats wall-clock time per call."""
+"""Timing helpers for the benchmark scripts: best-of-repeats wall-clock time per call."""
 
 from __future__ import annotations
 
@@ -17,6 +17,11 @@ def per_call(fn, calls: int, repeats: int = 5) -> float:
             fn()
         best = min(best, (time.perf_counter() - start) / calls)
     return best
+
+
+def best_of(fn, repeats: int = 3) -> float:
+    """Best wall-clock seconds of one ``fn()`` call over ``repeats``."""
+    return per_call(fn, 1, repeats)
 
 
 def report(rows: list[tuple[str, float]]) -> None:

@@ -45,7 +45,16 @@ def experiment_reference(experiment: str, period: float, duration: float | None 
 
 _BUILT: dict[str, object] = {}               # repr(params, period, substeps, fast) -> plant
 _SCHEDULES: dict[str, GainSchedule] = {}     # repr(params) -> schedule (about 0.5 s each)
-_GRAVITY: dict[str, DrivenDynamics] = {}     # repr(params) -> model (its gravity gives the holding PWM)
+_MODELS: dict[str, DrivenDynamics] = {}      # repr(params) -> model without Coulomb friction
+
+
+def _smooth_model(params: DriveParameters) -> DrivenDynamics:
+    """The driven-joint model of ``params`` without Coulomb friction, built once per process (the
+    schedule's design model; its gravity gives the holding PWM)."""
+    key = repr(params)
+    if key not in _MODELS:
+        _MODELS[key] = driven_dynamics(load_robot("psm"), params, coulomb=False)
+    return _MODELS[key]
 
 
 def psm_plant(params: DriveParameters, period: float, substeps: int = 4, fast: bool = False):
@@ -71,8 +80,7 @@ def psm_schedule(params: DriveParameters | None = None) -> GainSchedule:
     params = params or load_drive_parameters()
     key = repr(params)
     if key not in _SCHEDULES:
-        _SCHEDULES[key] = schedule_gains(driven_dynamics(load_robot("psm"), params, coulomb=False), THESIS_ROLL_DEG,
-                                         THESIS_PITCH_DEG)
+        _SCHEDULES[key] = schedule_gains(_smooth_model(params), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
     return _SCHEDULES[key]
 
 
@@ -109,12 +117,7 @@ def start_hold(reference: Reference, params: DriveParameters | None = None,
     """The steady hold of ``reference``'s first pose: the pose in firmware units and its holding
     PWM (``g(q) / k_u``, counts) with ``model``, else the model of ``params`` (default: the
     shipped set)."""
-    if model is None:
-        params = params or load_drive_parameters()
-        key = repr(params)
-        if key not in _GRAVITY:
-            _GRAVITY[key] = driven_dynamics(load_robot("psm"), params)
-        model = _GRAVITY[key]
+    model = model or _smooth_model(params or load_drive_parameters())
     return Hold(firmware_units(reference.position[0]), holding_pwm(model, reference.position[0]))
 
 
