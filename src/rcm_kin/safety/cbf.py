@@ -121,7 +121,8 @@ def _barrier_rows(u_nominal: np.ndarray, terms: list[BarrierTerms], alpha: float
         total = float(norms.sum() + bounds.sum() + u_nominal.sum())
     if not math.isfinite(total):
         raise RcmKinError("the CBF-QP data are not finite here (NaN or inf in u_nominal, B, LfB or LgB, or values "
-                          "beyond about 1e150)")
+                          "beyond about 1e150): check the state and nominal input handed to the filter (a "
+                          "diverged simulation gives these)")
     norms[norms == 0] = 1.0
     return rows / norms[:, None], bounds / norms
 
