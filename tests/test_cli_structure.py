@@ -4,6 +4,8 @@ taken out of it agree with independent computations."""
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -35,6 +37,18 @@ def test_cli_function_size(path):
     long = [f"{node.name} ({node.end_lineno - node.lineno + 1} lines)" for node in ast.walk(tree)
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno + 1 > 60]
     assert not long
+
+
+# libraries only some commands need (each costs 0.05-0.3 s to import): the CLI's start-up, which
+# every command pays, must not load them (it took 0.56 s with SciPy and python-control, now 0.24 s)
+HEAVY = ("scipy", "control", "matplotlib", "numba", "cvxpy", "daqp", "clarabel", "meshcat", "dask", "jinja2",
+         "mujoco", "rosbags", "yourdfpy")
+
+
+def test_cli_start_up_leaves_the_heavy_libraries_for_the_commands():
+    code = "import sys, rcm_kin.cli; print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))"
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert "pinocchio" in loaded and not set(HEAVY) & set(loaded)
 
 
 def test_cli_has_every_command():

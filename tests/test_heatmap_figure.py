@@ -15,7 +15,7 @@ from rcm_kin.dynamics.drive import load_drive_parameters
 from rcm_kin.report import figures
 from rcm_kin.statics.gravity_map import gravity_map
 
-PANELS = (("roll", "pwm", 0), ("roll", "voltage", 0), ("pitch", "pwm", 1), ("pitch", "voltage", 1))   # as drawn
+PANELS = (("roll", 0), ("pitch", 1))   # (joint, index in the map's driven joints), as drawn
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +23,7 @@ def psm_drive():
     return load_robot("psm"), load_drive_parameters()
 
 
-def drawn(monkeypatch, gmap, **options):
+def drawn(monkeypatch, gmap, drive, **options):
     """The figure ``effort_heatmaps`` builds (not saved) and the (x, y, z) of each contour call."""
     built, traced = [], []
     monkeypatch.setattr(figures, "_save", lambda fig, path: built.append(fig) or path)
@@ -34,7 +34,7 @@ def drawn(monkeypatch, gmap, **options):
         return contour(ax, x, y, z, **kwargs)
 
     monkeypatch.setattr(matplotlib.axes.Axes, "contour", recording)
-    figures.effort_heatmaps(gmap, "not-written.png", **options)
+    figures.effort_heatmaps(gmap, drive, "not-written.png", **options)
     monkeypatch.undo()
     return built[0], traced
 
@@ -48,18 +48,17 @@ def plain_contour(x, y, z):
 
 
 def panels(fig, traced):
-    """(axes, (x, y, z) of its contour, quantity, joint index) of each heat map, in :data:`PANELS` order."""
-    by_title = {ax.get_title().split(" (")[0]: ax for ax in fig.axes if ax.get_label() != "<colorbar>"}
-    assert len(by_title) == len(traced) == 4
-    return [(by_title[f"{joint} holding {quantity}"], xyz, quantity, k)
-            for xyz, (joint, quantity, k) in zip(traced, PANELS)]
+    """(axes, (x, y, z) of its contour, joint, joint index) of each heat map, in :data:`PANELS` order."""
+    by_title = {ax.get_title(): ax for ax in fig.axes if ax.get_label() != "<colorbar>"}
+    assert len(by_title) == len(traced) == 2
+    return [(by_title[f"{joint} holding PWM"], xyz, joint, k) for xyz, (joint, k) in zip(traced, PANELS)]
 
 
 def test_small_map_is_drawn_from_the_whole_grid(psm_drive, monkeypatch):
     gmap = gravity_map(*psm_drive, np.linspace(-30, 30, 61), np.linspace(-20, 25, 41), [0.1])
-    fig, traced = drawn(monkeypatch, gmap)
-    for ax, (x, y, z), quantity, k in panels(fig, traced):
-        data = getattr(gmap.effort, quantity)[:, :, 0, k]
+    fig, traced = drawn(monkeypatch, gmap, psm_drive[1])
+    for ax, (x, y, z), joint, k in panels(fig, traced):
+        data = gmap.effort.pwm[:, :, 0, k]
         image = ax.images[0]
         assert np.array_equal(image.get_array(), data)                 # the image: every pose
         assert image.get_clim() == (-np.abs(data).max(), np.abs(data).max())
@@ -75,7 +74,7 @@ def pixel_difference(a, b) -> tuple[float, float, float]:
     """Mean and largest absolute difference (of 255) of two PNGs' RGB values, and the fraction of
     pixels that differ at all."""
     a, b = (np.asarray(Image.open(p).convert("RGB"), dtype=float) for p in (a, b))
-    assert a.shape == b.shape == (880, 1100, 3)
+    assert a.shape == b.shape == (506, 1210, 3)
     difference = np.abs(a - b)
     return difference.mean(), difference.max(), (difference.max(axis=2) > 0).mean()
 
@@ -89,9 +88,9 @@ def test_large_map_drawn_from_samples_looks_the_same(psm_drive, monkeypatch, tmp
     mean < 0.06, max <= 4, under 10 %."""
     grid = np.linspace(-30, 30, 801)
     gmap = gravity_map(*psm_drive, grid, grid, [0.08])
-    fig, traced = drawn(monkeypatch, gmap)
-    for ax, (x, y, z), quantity, k in panels(fig, traced):
-        data = getattr(gmap.effort, quantity)[:, :, 0, k]
+    fig, traced = drawn(monkeypatch, gmap, psm_drive[1])
+    for ax, (x, y, z), joint, k in panels(fig, traced):
+        data = gmap.effort.pwm[:, :, 0, k]
         assert np.array_equal(ax.images[0].get_array(), data[::2, ::2])
         assert ax.images[0].get_extent() == [-30.0, 30.0, -30.0, 30.0]
         assert ax.images[0].get_clim() == (-np.abs(data).max(), np.abs(data).max())
@@ -102,9 +101,10 @@ def test_large_map_drawn_from_samples_looks_the_same(psm_drive, monkeypatch, tmp
         levels = ax.collections[0].levels
         assert np.array_equal(levels, plain_contour(grid, grid, data).levels)   # the whole grid's levels
     figures.plt.close(fig)
-    whole = figures.effort_heatmaps(gmap, tmp_path / "whole.png", image_samples=801, contour_samples=801)
-    contours = figures.effort_heatmaps(gmap, tmp_path / "contours.png", image_samples=801)
-    sampled = figures.effort_heatmaps(gmap, tmp_path / "sampled.png")
+    drive = psm_drive[1]
+    whole = figures.effort_heatmaps(gmap, drive, tmp_path / "whole.png", image_samples=801, contour_samples=801)
+    contours = figures.effort_heatmaps(gmap, drive, tmp_path / "contours.png", image_samples=801)
+    sampled = figures.effort_heatmaps(gmap, drive, tmp_path / "sampled.png")
     mean, largest, share = pixel_difference(contours, whole)
     assert mean < 0.01 and largest <= 4 and share < 0.01
     mean, largest, share = pixel_difference(sampled, whole)
@@ -132,7 +132,7 @@ def test_spread_samples():
     assert picked.size == 301 and picked[0] == 0 and picked[-1] == 1000 and np.all(np.diff(picked) >= 3)
 
 
-def test_contours_on_samples_keep_the_whole_grids_levels_and_colours(monkeypatch):
+def test_contours_on_samples_keep_the_whole_grids_levels_and_colours(psm_drive, monkeypatch):
     """A field whose peak lies between the samples (41 poses per axis traced on 11): the levels and
     the colour limits are the whole grid's, not the samples' (which would be lower)."""
     from rcm_kin.dynamics.drive import DriveEffort
@@ -143,10 +143,31 @@ def test_contours_on_samples_keep_the_whole_grids_levels_and_colours(monkeypatch
     field[1, 2] = 9.0                                         # pose (1, 2): not one of the samples
     stack = np.repeat(field[:, :, None, None], 3, axis=3)
     gmap = GravityMap(grid, grid, np.array([0.08]), DriveEffort(*([stack] * 5), stack > 0))
-    fig, traced = drawn(monkeypatch, gmap, contour_samples=11)
+    fig, traced = drawn(monkeypatch, gmap, psm_drive[1], contour_samples=11)
     for ax, (x, y, z), _, _ in panels(fig, traced):
         assert x.size == y.size == 11 and z.max() < 3.0
         assert np.array_equal(ax.collections[0].levels, plain_contour(grid, grid, field).levels)
         assert not np.array_equal(ax.collections[0].levels, plain_contour(x, y, z).levels)
         assert ax.images[0].get_clim() == (-9.0, 9.0)
+    figures.plt.close(fig)
+
+
+def test_colour_bars_read_the_drives_voltage(psm_drive, monkeypatch):
+    """Each colour bar's second scale (V) puts the voltage the drive model gives at the pose of the
+    panel's largest |PWM| level with that PWM (both ends of the bar, sign included), to 1e-9 of
+    the bar's height."""
+    gmap = gravity_map(*psm_drive, np.linspace(-30, 30, 31), np.linspace(-30, 30, 21), [0.12])
+    fig, traced = drawn(monkeypatch, gmap, psm_drive[1])
+    fig.canvas.draw()
+    for ax, _, joint, k in panels(fig, traced):
+        pwm, voltage = (getattr(gmap.effort, q)[:, :, 0, k].ravel() for q in ("pwm", "voltage"))
+        at = np.argmax(np.abs(pwm))
+        bar = ax.images[0].colorbar.ax
+        (volts,) = bar.child_axes
+        assert volts.get_ylabel() == "motor voltage (V)"
+        height = bar.get_window_extent().height
+        for end in (1.0, -1.0):                              # PWM = +-max|PWM|: the same pose up to sign
+            on_bar = bar.transData.transform((0.0, end * abs(pwm[at])))[1]
+            on_volts = volts.transData.transform((0.0, end * np.sign(pwm[at]) * voltage[at]))[1]
+            assert abs(on_bar - on_volts) < 1e-9 * height
     figures.plt.close(fig)

@@ -18,16 +18,18 @@ bilinearly (table[pitch][roll]) and clamps to the edge outside.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rcm_kin.control.friction_compensation import DEFAULT_RAMP_DEG_S, FrictionCompensation, friction_compensation
-from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.weights import Weights
-from rcm_kin.dynamics.state_space import DrivenDynamics
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION, INSERTION_KP
 from rcm_kin.robot import load_robot
+
+if TYPE_CHECKING:
+    from rcm_kin.dynamics.state_space import DrivenDynamics
 
 THESIS_ROLL_DEG = (-20.0, 0.0, 20.0)
 THESIS_PITCH_DEG = (-15.0, 0.0, 15.0)
@@ -146,6 +148,8 @@ def schedule_gains(model: DrivenDynamics, roll_deg, pitch_deg, insertion: float 
     """Design the gain tables on a roll x pitch grid (degrees) at one insertion (m). The schedule
     also carries the friction-compensation feedforward of the model's sliding Coulomb friction
     (the Coulomb level the design leaves out), ramped over ``friction_ramp_deg_s`` (deg/s)."""
+    from rcm_kin.control.linearization import linearize_grid   # CasADi and SciPy: not at CLI start-up
+
     if model.coulomb:
         raise RcmKinError("design on the model without Coulomb friction: driven_dynamics(..., coulomb=False)")
     weights = weights or Weights()

@@ -15,6 +15,7 @@ from matplotlib import ticker  # noqa: E402
 import numpy as np  # noqa: E402
 
 from rcm_kin.control.thesis_reference import FIGURES  # noqa: E402
+from rcm_kin.dynamics.drive import DRIVEN  # noqa: E402
 from rcm_kin.errors import RcmKinError  # noqa: E402
 
 # line styles that stay apart when curves coincide (e.g. roll -15 and +15 by symmetry)
@@ -62,31 +63,35 @@ def prediction_figure(time, measured, predicted, path: str | Path, title: str = 
     return _save(fig, path)
 
 
-def effort_heatmaps(gmap, path: str | Path, insertion_index: int = 0, image_samples: int = IMAGE_SAMPLES,
+def effort_heatmaps(gmap, drive, path: str | Path, insertion_index: int = 0, image_samples: int = IMAGE_SAMPLES,
                     contour_samples: int = CONTOUR_SAMPLES) -> Path:
-    """PWM and voltage heat maps of roll and pitch over the roll x pitch grid at one insertion. A
-    panel is about 400 pixels wide, so a finer grid is drawn from samples of it that look the same
+    """Holding PWM heat maps of roll and pitch over the roll x pitch grid at one insertion, each
+    colour bar with a second scale in motor volts (at rest the drive is linear, V = sign x
+    volts_per_pwm x PWM, from ``drive``, the map's :class:`DriveParameters`). A panel is about 450
+    pixels wide, so a finer grid is drawn from samples of it that look the same
     (tests/test_heatmap_figure.py): the image from every k-th pose (:func:`image_stride`, at least
     ``image_samples`` per axis, both ends kept), the contour lines (9 levels, matplotlib's choice
     over the whole grid's range) traced on at most ``contour_samples`` evenly spread poses per axis
     (:func:`spread_samples`); the colour scale is the whole grid's."""
-    e = gmap.effort
-    fig, axes = plt.subplots(2, 2, figsize=(10, 8), constrained_layout=True)
+    pwm = gmap.effort.pwm
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), layout="constrained")
     extent = [*_span(gmap.roll_deg), *_span(gmap.pitch_deg)]
     rows, cols = (spread_samples(n, contour_samples) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
     pixels = tuple(slice(None, None, image_stride(n, image_samples)) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
-    for col, (joint, k) in enumerate((("roll", 0), ("pitch", 1))):
-        for row, (quantity, unit) in enumerate((("pwm", "counts"), ("voltage", "V"))):
-            data = getattr(e, quantity)[:, :, insertion_index, k]
-            ax = axes[row, col]
-            limit = np.abs(data).max()
-            im = ax.imshow(data[pixels], origin="lower", extent=extent, aspect="auto", cmap="coolwarm",
-                           vmin=-limit, vmax=limit)
-            if min(data.shape) >= 2:                 # a 1-point axis has no contours
-                ax.contour(gmap.roll_deg[cols], gmap.pitch_deg[rows], data[np.ix_(rows, cols)], colors="k",
-                           linewidths=0.5, levels=contour_levels(data, 9))
-            ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=f"{joint} holding {quantity} ({unit})")
-            fig.colorbar(im, ax=ax)
+    for ax, joint in zip(axes, ("roll", "pitch")):
+        k = DRIVEN.index(joint)
+        data = pwm[:, :, insertion_index, k]
+        limit = np.abs(data).max()
+        im = ax.imshow(data[pixels], origin="lower", extent=extent, aspect="auto", cmap="coolwarm",
+                       vmin=-limit, vmax=limit)
+        if min(data.shape) >= 2:                 # a 1-point axis has no contours
+            ax.contour(gmap.roll_deg[cols], gmap.pitch_deg[rows], data[np.ix_(rows, cols)], colors="k",
+                       linewidths=0.5, levels=contour_levels(data, 9))
+        ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=f"{joint} holding PWM")
+        bar = fig.colorbar(im, ax=ax, label="PWM (counts)")
+        volts = drive[joint].pwm_sign * drive[joint].volts_per_pwm
+        bar.ax.secondary_yaxis("left", functions=(lambda p, v=volts: p * v, lambda u, v=volts: u / v)).set_ylabel(
+            "motor voltage (V)")
     fig.suptitle(f"Holding effort at insertion {gmap.insertion[insertion_index] * 1e3:.0f} mm "
                  "(PWM: hardware sign, positive decreases the angle)")
     return _save(fig, path)
