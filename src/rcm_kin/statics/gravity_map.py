@@ -217,7 +217,7 @@ def write_gravity_maps(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg
     # a second thread they take (almost) no time from the figures, which are drawn in Python
     with ThreadPoolExecutor(1) as pool:
         tables = pool.submit(write_tables)
-        drawn = [effort_heatmaps(gmap, drive, out / "torque_map.png"), thesis_trend_curves(gmap, out / "trend_curves.png"),
-                 insertion_curves(sweep, out / "insertion_map.png")]
+        drawn = [effort_heatmaps(gmap, drive, out / "torque_map.png"),
+                 thesis_trend_curves(gmap, out / "trend_curves.png"), insertion_curves(sweep, out / "insertion_map.png")]
         written = tables.result()
     return gmap, [written[0], *drawn[:2], written[1], drawn[2]]
