@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import hashlib
-import platform
 import shutil
 import sys
 from collections.abc import Callable
@@ -23,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from rcm_kin.errors import RcmKinError
-from rcm_kin.symbolic.compiled import build_library, compiler_command
+from rcm_kin.symbolic.compiled import build_library, cache_key, compiler_command, load_library
 
 COMPILE_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared")
 NAME = "rcm_csv_format_rows"
@@ -93,12 +91,7 @@ def _formatter(command: tuple[str, ...]) -> Callable[[np.ndarray], bytes] | None
     if not command or shutil.which(command[0]) is None:
         return _fallback(f"no C compiler '{command[0] if command else ''}' found (set CC)")
     try:
-        path = _build(list(command))
-        try:
-            library = ctypes.CDLL(str(path))
-        except OSError:                         # a truncated or corrupt cached file: build it once more
-            path.unlink(missing_ok=True)
-            library = ctypes.CDLL(str(_build(list(command))))
+        _, library = load_library(_build(list(command)), lambda: _build(list(command)), NAME)
     except (OSError, RcmKinError) as exc:
         return _fallback(f"the CSV formatter was not built ({exc})")
     function = getattr(library, NAME)
@@ -119,9 +112,6 @@ def _fallback(reason: str) -> None:
 
 def _build(command: list[str]) -> Path:
     """The cached shared library, compiled first if absent (:func:`build_library`), keyed by the
-    source, the compiler command and the machine."""
-    digest = hashlib.sha256()
-    for part in (SOURCE, " ".join(command + list(COMPILE_FLAGS)), platform.system(), platform.machine()):
-        digest.update(part.encode())
-        digest.update(b"\0")
-    return build_library(NAME, digest.hexdigest(), SOURCE, command, COMPILE_FLAGS)
+    source, the compiler command and the machine (:func:`cache_key`)."""
+    return build_library(NAME, cache_key(SOURCE, " ".join(command + list(COMPILE_FLAGS))), SOURCE, command,
+                         COMPILE_FLAGS)

@@ -56,15 +56,19 @@ def compiler_command() -> list[str]:
     return shlex.split(os.environ.get("CC") or "cc")
 
 
-def function_key(fn: ca.Function, command: list[str]) -> str:
-    """SHA-256 (hex) of the function's serialisation, the CasADi version, the compile command and
-    the machine (``platform.system()``, ``platform.machine()``)."""
+def cache_key(*parts: str) -> str:
+    """SHA-256 (hex) of ``parts`` and the machine (``platform.system()``, ``platform.machine()``):
+    the name of a cached library, so that a home folder shared by machines shares no binaries."""
     digest = hashlib.sha256()
-    for part in (fn.serialize(), ca.__version__, " ".join(command + list(COMPILE_FLAGS)), platform.system(),
-                 platform.machine()):
+    for part in (*parts, platform.system(), platform.machine()):
         digest.update(part.encode())
         digest.update(b"\0")
     return digest.hexdigest()
+
+
+def function_key(fn: ca.Function, command: list[str]) -> str:
+    """:func:`cache_key` of the function's serialisation, the CasADi version and the compile command."""
+    return cache_key(fn.serialize(), ca.__version__, " ".join(command + list(COMPILE_FLAGS)))
 
 
 @functools.cache
@@ -91,26 +95,34 @@ def compiled(fn: ca.Function) -> ca.Function:
 
 
 def loaded_library(fn: ca.Function) -> tuple[Path, ctypes.CDLL] | None:
-    """:func:`compiled_library` of ``fn`` and the library loaded (``ctypes``: it stays loaded for
-    the process). A cached library that does not load (truncated, corrupt) is deleted and built
-    once more. None as :func:`compiled_library`; raises :class:`RcmKinError` when the compiler
-    fails or the library built anew does not load either."""
-    for attempt in ("cached", "built anew"):
-        library = compiled_library(fn)
-        if library is None:
-            return None
-        try:
-            return library, ctypes.CDLL(str(library))
-        except OSError as exc:
-            failure = exc
-        if attempt == "built anew":
-            break
-        try:
-            library.unlink(missing_ok=True)
-        except OSError as exc:
-            raise RcmKinError(f"the compiled {fn.name()} does not load ({failure}) and cannot be deleted "
-                              f"({exc.strerror})") from None
-    raise RcmKinError(f"the compiled {fn.name()} does not load, even built anew: {failure}")
+    """:func:`compiled_library` of ``fn`` and the library loaded (:func:`load_library`). None as
+    :func:`compiled_library`; raises :class:`RcmKinError` when the compiler fails or the library
+    built anew does not load either."""
+    library = compiled_library(fn)
+    return None if library is None else load_library(library, lambda: compiled_library(fn), fn.name())
+
+
+def load_library(library: Path, rebuild: Callable[[], Path | None], name: str) -> tuple[Path, ctypes.CDLL] | None:
+    """``library`` loaded with ``ctypes`` (it stays loaded for the process). A cached library that
+    does not load (truncated by a full disk or a killed copy, corrupt) is deleted and ``rebuild()``
+    once (None from it: None). Raises :class:`RcmKinError` naming ``name`` when the file cannot be
+    deleted or the library built anew does not load either."""
+    try:
+        return library, ctypes.CDLL(str(library))
+    except OSError as exc:
+        failure = exc
+    try:
+        library.unlink(missing_ok=True)
+    except OSError as exc:
+        raise RcmKinError(f"the compiled {name} does not load ({failure}) and cannot be deleted "
+                          f"({exc.strerror})") from None
+    library = rebuild()
+    if library is None:
+        return None
+    try:
+        return library, ctypes.CDLL(str(library))
+    except OSError as exc:
+        raise RcmKinError(f"the compiled {name} does not load, even built anew: {exc}") from None
 
 
 def compiled_library(fn: ca.Function) -> Path | None:
@@ -134,16 +146,19 @@ def _load(name: str, library: Path) -> ca.Function:
 
 
 def _build(fn: ca.Function, command: list[str]) -> Path:
-    """The cached shared library of ``fn``, compiled first if absent."""
-    generator = ca.CodeGenerator(f"{fn.name()}.c", {"with_header": False})
-    generator.add(_merged(fn))
-    return build_library(fn.name(), function_key(fn, command), generator.dump(), command)
+    """The cached shared library of ``fn``, compiled first if absent (the C is generated only then)."""
+    def source() -> str:
+        generator = ca.CodeGenerator(f"{fn.name()}.c", {"with_header": False})
+        generator.add(_merged(fn))
+        return generator.dump()
+    return build_library(fn.name(), function_key(fn, command), source, command)
 
 
-def build_library(name: str, key: str, source: str, command: list[str],
+def build_library(name: str, key: str, source: str | Callable[[], str], command: list[str],
                   flags: tuple[str, ...] = COMPILE_FLAGS) -> Path:
     """The shared library ``name_<key>.so`` in the cache folder, compiled from the C ``source``
-    with ``command`` and ``flags`` first if absent (written atomically, so concurrent processes never
+    (or what ``source()`` returns, called only when the library is not cached) with ``command``
+    and ``flags`` first if absent (written atomically, so concurrent processes never
     load a half-written file). The folder keeps the :data:`CACHE_LIBRARIES` most recently used
     libraries (a use touches the file). A compiler failure is an :class:`RcmKinError` with its
     first line."""
@@ -159,7 +174,7 @@ def build_library(name: str, key: str, source: str, command: list[str],
     folder.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=folder) as work:
         path = Path(work) / f"{name}.c"
-        path.write_text(source)
+        path.write_text(source() if callable(source) else source)
         target = Path(work) / library.name
         run = subprocess.run([*command, *flags, str(path), "-o", str(target), "-lm"],
                              capture_output=True, text=True)
