@@ -22,7 +22,7 @@ from common import per_call, report
 from scipy import sparse
 
 from rcm_kin.safety.barriers import Ellipsoid
-from rcm_kin.safety.cbf import barrier_terms, blended_control, cbf_qp, cbf_qp_problem, solve_cbf_qp
+from rcm_kin.safety.cbf import barrier_terms, blended_control, cbf_qp, cbf_qp_problem, qp_matrices, solve_cbf_qp
 from rcm_kin.safety.scenarios import CARTESIAN_TAU
 
 
@@ -41,13 +41,10 @@ def main() -> None:
     def plain_clarabel():
         """The plain call, as cbf_qp made it before the prebuilt structure: matrices from the
         step's data and a new solver, default settings."""
-        t = barrier_terms(e, x, A @ x, B)
-        rows = [t.lg] + list(np.eye(3)) + list(-np.eye(3))
-        bounds = [-t.lf - 20.0 * t.value] + [0.1] * 6
+        P, q, rows, bounds = qp_matrices(u, [barrier_terms(e, x, A @ x, B)], 20.0, 0.1)
         settings = clarabel.DefaultSettings()
         settings.verbose = False
-        clarabel.DefaultSolver(sparse.csc_matrix(2 * np.eye(3)), -2 * u, sparse.csc_matrix(np.array(rows)),
-                               np.array(bounds), [clarabel.NonnegativeConeT(7)], settings).solve()
+        clarabel.DefaultSolver(P, q, rows, bounds, [clarabel.NonnegativeConeT(7)], settings).solve()
 
     # the previous implementation: one Clarabel solver with fixed sparsity (every barrier entry
     # stored), presolve and equilibration off, its q, A values and b updated each step
