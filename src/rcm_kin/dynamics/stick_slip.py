@@ -175,12 +175,17 @@ def _advance(th, ku, kemf, Jm, gravity, inertia, pwm, state, period, substeps):
         _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h)
 
 
+def substep_count(period: float) -> int:
+    """Integration substeps (each at most :data:`SUBSTEP` s) in one ``period`` s."""
+    return max(1, int(np.ceil(period / SUBSTEP - 1e-9)))
+
+
 def advance_axis(friction_vector: np.ndarray, input_gain: float, back_emf: float, rotor_inertia: float,
                  gravity: float, inertia: float, pwm: float, state: np.ndarray, period: float) -> None:
     """Advance one axis's ``state`` (in place) over ``period`` s with ``pwm`` held and the
     rigid-body ``gravity`` (N m, bias forces included) and link ``inertia`` (kg m^2) frozen over
     the period: the closed-loop simulator's plant step. ``friction_vector``: :meth:`AxisFriction.vector`."""
-    substeps = max(1, int(np.ceil(period / SUBSTEP - 1e-9)))
+    substeps = substep_count(period)
     _advance(friction_vector, input_gain, back_emf, rotor_inertia, gravity, inertia, pwm, state, period, substeps)
 
 
@@ -204,7 +209,7 @@ def simulate_axis(friction: AxisFriction, plant: AxisPlant, pwm: np.ndarray, per
                   state: np.ndarray) -> np.ndarray:
     """Measured angle (rad) after each of ``pwm``'s samples, each held for ``period`` s, from
     ``state`` (see :func:`rest_state`; advanced in place)."""
-    substeps = max(1, int(np.ceil(period / SUBSTEP - 1e-9)))
+    substeps = substep_count(period)
     return _run(friction.vector(), plant.input_gain, plant.back_emf, plant.rotor_inertia, plant.grid,
                 plant.gravity, plant.inertia, np.asarray(pwm, dtype=float), state, period, substeps)
 
@@ -217,7 +222,7 @@ def simulate_axis_closed(friction: AxisFriction, plant: AxisPlant, law: np.ndarr
     firmware reads it; 0: exact; the first difference taken from rest) is held for one period.
     Returns the measured angle at each sample (before its PWM acts) and the PWM applied, from
     ``state`` (advanced in place)."""
-    substeps = max(1, int(np.ceil(period / SUBSTEP - 1e-9)))
+    substeps = substep_count(period)
     return _run_closed(friction.vector(), plant.input_gain, plant.back_emf, plant.rotor_inertia, plant.grid,
                        plant.gravity, plant.inertia, np.asarray(law, dtype=float),
                        np.asarray(excitation, dtype=float), state, period, substeps, count)

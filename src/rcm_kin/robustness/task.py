@@ -1,7 +1,7 @@
 """One Dask task: a batch of samples, each a drawn parameter set simulated with every controller.
 
 The controllers are the ones flashed once: their gain schedule is designed on the nominal
-parameter set (:func:`rcm_kin.simulation.experiments.psm_plant_and_schedule`), and only the plant
+parameter set (:func:`rcm_kin.simulation.experiments.psm_schedule`), and only the plant
 (the robot the schedule meets) takes the drawn parameters. Per sample and controller:
 
 - the closed-loop experiment (400 Hz firmware; :func:`rcm_kin.simulation.experiments.closed_loop`,
@@ -43,7 +43,7 @@ from rcm_kin.robot import load_robot
 from rcm_kin.robustness.sampling import Uncertain, draw, with_values
 from rcm_kin.simulation.controllers import CONTROLLERS, Hold, make_controller
 from rcm_kin.simulation.experiments import (check_in_limits, closed_loop, experiment_reference, psm_plant,
-                                            psm_plant_and_schedule, start_hold)
+                                            psm_schedule, start_hold)
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import AXES, SimulationResult, tracking_metrics
 
@@ -178,7 +178,7 @@ def closed_loop_run(plant, controller, reference, settings: FirmwareSettings,
 def run_sample(study: Study, index: int, seed: np.random.SeedSequence) -> SampleOutcome:
     """Sample ``index`` of ``study``, drawn from ``seed`` alone."""
     settings = FirmwareSettings()
-    _, schedule = psm_plant_and_schedule(study.params, settings.period)
+    schedule = psm_schedule(study.params)
     reference = _reference(study.experiment, settings.period, study.duration)
     values = draw(study.uncertain, seed)
     params = with_values(study.params, study.uncertain, values)

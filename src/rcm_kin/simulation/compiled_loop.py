@@ -51,13 +51,14 @@ from tqdm import tqdm
 from rcm_kin.control import thesis_reference
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG
 from rcm_kin.dynamics import stick_slip
-from rcm_kin.dynamics.stick_slip import SUBSTEP, _advance
-from rcm_kin.errors import NonFiniteResultError, RcmKinError
+from rcm_kin.dynamics.stick_slip import _advance, substep_count
+from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import INSERTION_KP
 from rcm_kin.simulation.controllers import (Controller, Hold, PController, PIDController, StateFeedbackController,
                                             ThesisController)
+from rcm_kin.simulation.fast_path import stacked
 from rcm_kin.simulation.firmware import FirmwareSettings
-from rcm_kin.simulation.loop import FIRMWARE_SCALE, SimulationResult, check_run, firmware_units
+from rcm_kin.simulation.loop import FIRMWARE_SCALE, SimulationResult, check_run, diverged, firmware_units
 from rcm_kin.simulation.plant import DriveTrainPlant
 from rcm_kin.simulation.references import Reference
 from rcm_kin.symbolic.compiled import loaded_library
@@ -133,7 +134,7 @@ class CompiledPlant:
     functions: tuple[CFunction, ...]
     period: float                # s
     drive_train: DriveTrainPlant | None = None
-    substeps: int = 1            # stick-slip substeps per period, as advance_axis takes them
+    substeps: int = 1            # stick-slip substeps per period (stick_slip.substep_count)
 
     def initial(self, position) -> np.ndarray:
         if self.drive_train is not None:
@@ -142,12 +143,13 @@ class CompiledPlant:
 
     def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         state = np.array(x, dtype=float)
-        _plant_steps(state, np.asarray(u, dtype=float).reshape(1, 3), *self.kernel_arguments())
+        _plant_steps(state, np.asarray(u, dtype=float).reshape(1, 3), *self.kernel_arguments)
         return state
 
+    @functools.cached_property
     def kernel_arguments(self) -> tuple:
         """kind, addresses (3,), work sizes (3, 4), friction (3, n), input gain, damping, reflected
-        inertia (3,) (zeros for the smooth plant), period, substeps."""
+        inertia (3,) (zeros for the smooth plant), period, substeps: made once per plant."""
         addresses, work = np.zeros(3, dtype=np.int64), np.zeros((3, 4), dtype=np.int64)
         for i, fn in enumerate(self.functions):
             addresses[i], work[i] = fn.address, fn.work
@@ -176,8 +178,7 @@ def compiled_drive_train(plant: DriveTrainPlant) -> CompiledPlant | None:
     if mass_matrix is None or bias is None:
         _warn_fallback("no compiled model functions")
         return None
-    substeps = max(1, int(np.ceil(plant.period / SUBSTEP - 1e-9)))     # as advance_axis
-    return CompiledPlant(DRIVE_TRAIN, (mass_matrix, bias), plant.period, plant, substeps)
+    return CompiledPlant(DRIVE_TRAIN, (mass_matrix, bias), plant.period, plant, substep_count(plant.period))
 
 
 def compiled_smooth(period_map: ca.Function, period: float) -> CompiledPlant | None:
@@ -224,20 +225,18 @@ def loop_law(controller: Controller, hold: Hold | None = None) -> LoopLaw | None
         gains[:] = [*controller.kp, *controller.ki, *controller.kd]
         return LoopLaw(PID, off, gains, no_grid, no_grid, no_table, no_hold, np.zeros(3), memory)
     if type(controller) is ThesisController:
-        table = np.concatenate([thesis_reference.K_ROLL, thesis_reference.K_PITCH,
-                                np.zeros(thesis_reference.K_ROLL.shape[:2] + (2,))], axis=-1)
-        return LoopLaw(THESIS, off, gains, np.array(THESIS_ROLL_DEG, dtype=float),
-                       np.array(THESIS_PITCH_DEG, dtype=float), table, np.zeros(table.shape[:2] + (2,)),
-                       np.zeros(3), memory)
+        table = stacked(THESIS_ROLL_DEG, THESIS_PITCH_DEG, thesis_reference.K_ROLL, thesis_reference.K_PITCH,
+                        np.zeros(thesis_reference.K_ROLL.shape[:2] + (2,)))
+        return LoopLaw(THESIS, off, gains, np.array(table.roll), np.array(table.pitch), table.values,
+                       np.zeros(table.values.shape[:2] + (2,)), np.zeros(3), memory)
     s = controller.schedule
     if controller.friction and s.friction is None:
         raise RcmKinError("the friction-compensated controller needs a schedule with its friction feedforward")
-    table = np.concatenate([s.k_roll, s.k_pitch, s.ff_pitch], axis=-1).astype(float)
-    hold = np.asarray(s.u_hold, dtype=float) if controller.gravity else np.zeros(table.shape[:2] + (2,))
+    table = stacked(s.roll_deg, s.pitch_deg, s.k_roll, s.k_pitch, s.ff_pitch)
+    hold = np.asarray(s.u_hold, dtype=float) if controller.gravity else np.zeros(table.values.shape[:2] + (2,))
     friction = np.r_[s.friction.pwm, s.friction.ramp_deg_s] if controller.friction else np.zeros(3)
     flags = np.array([controller.scheduled, controller.gravity, controller.track_velocity, controller.friction])
-    return LoopLaw(STATE_FEEDBACK, flags, gains, np.asarray(s.roll_deg, dtype=float),
-                   np.asarray(s.pitch_deg, dtype=float), np.ascontiguousarray(table),
+    return LoopLaw(STATE_FEEDBACK, flags, gains, np.array(table.roll), np.array(table.pitch), table.values,
                    np.ascontiguousarray(hold), friction.astype(float), memory)
 
 
@@ -494,8 +493,8 @@ def simulate_compiled(plant: CompiledPlant, law: LoopLaw, name: str, reference: 
                        limit, count, settings.roll_filter, settings.quantise_pwm, FIRMWARE_SCALE, INSERTION_KP,
                        law.kind, law.flags, law.gains,
                        law.roll_deg, law.pitch_deg, law.table, law.hold, law.friction,
-                       *plant.kernel_arguments()[:-2], plant.substeps, *logs)   # the period given above
+                       *plant.kernel_arguments[:-2], plant.substeps, *logs)   # the period given above
             if end != stop:
-                raise NonFiniteResultError(f"the simulation diverged at t = {end * settings.period:.3f} s ({name})")
+                raise diverged(end, settings.period, name)
             ticks.update(stop - first)
     return SimulationResult(name, reference.time, ref_fw, *logs, settings)

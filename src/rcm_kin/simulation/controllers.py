@@ -33,6 +33,7 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import INSERTION_KP, P_GAINS
 
 CONTROLLERS = ("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity", "scheduled-friction", "thesis")
+MODEL_FREE = ("p", "pid", "thesis")        # the controllers that need no gain schedule
 
 
 @dataclass(frozen=True)
@@ -224,12 +225,8 @@ class ThesisController:
 def make_controller(name: str, schedule: GainSchedule | None = None) -> Controller:
     """The controller called ``name`` (one of :data:`CONTROLLERS`); the model-based ones need the
     gain schedule (:func:`rcm_kin.control.gain_schedule.schedule_gains`)."""
-    if name == "p":
-        return PController()
-    if name == "pid":
-        return PIDController()
-    if name == "thesis":
-        return ThesisController()
+    if name in MODEL_FREE:
+        return {"p": PController, "pid": PIDController, "thesis": ThesisController}[name]()
     if name not in CONTROLLERS:
         raise RcmKinError(f"unknown controller '{name}' (choose from {', '.join(CONTROLLERS)})")
     if schedule is None:

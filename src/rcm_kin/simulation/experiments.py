@@ -20,7 +20,7 @@ from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.robot import load_robot
 from rcm_kin.simulation.compiled_loop import (CompiledPlant, compiled_drive_train, compiled_smooth, loop_law,
                                               simulate_compiled)
-from rcm_kin.simulation.controllers import Controller, Hold, make_controller
+from rcm_kin.simulation.controllers import MODEL_FREE, Controller, Hold, make_controller
 from rcm_kin.simulation.fast_path import compiled_period_map, fast_controller, fast_plant
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import SimulationResult, firmware_units, simulate
@@ -84,11 +84,12 @@ def psm_schedule(params: DriveParameters | None = None) -> GainSchedule:
     return _SCHEDULES[key]
 
 
-def _plant_and_schedule(params: DriveParameters, period: float, substeps: int, fast: bool):
+def _built_plant(params: DriveParameters, period: float, substeps: int, fast: bool):
+    """:func:`psm_plant`, built once per process and arguments."""
     key = repr((params, period, substeps, fast))
     if key not in _BUILT:
         _BUILT[key] = psm_plant(params, period, substeps, fast)
-    return _BUILT[key], psm_schedule(params)
+    return _BUILT[key]
 
 
 @dataclass(frozen=True)
@@ -109,7 +110,8 @@ def psm_plant_and_schedule(params: DriveParameters | None = None, period: float 
     smooth model; ``fast``: its model functions compiled (a
     :class:`~rcm_kin.simulation.compiled_loop.CompiledPlant`, whose closed loop runs in one
     compiled kernel; without a C compiler the per-tick :mod:`rcm_kin.simulation.fast_path`)."""
-    return _plant_and_schedule(params or load_drive_parameters(), period, substeps, fast)
+    params = params or load_drive_parameters()
+    return _built_plant(params, period, substeps, fast), psm_schedule(params)
 
 
 def start_hold(reference: Reference, params: DriveParameters | None = None,
@@ -130,8 +132,9 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
     and stacked gain tables); ``False`` runs the readable reference classes. All give the same
     result (tests/test_compiled_loop.py, tests/test_simulation.py). The run starts from the steady
     hold of the first pose (:func:`start_hold`): integrals charged with its holding PWM."""
-    settings = settings or FirmwareSettings()
-    plant, schedule = psm_plant_and_schedule(params, settings.period, fast=fast)
+    settings, params = settings or FirmwareSettings(), params or load_drive_parameters()
+    plant = _built_plant(params, settings.period, 4, fast)
+    schedule = None if controller in MODEL_FREE else psm_schedule(params)     # the design takes about 1 s
     reference = experiment_reference(experiment, settings.period, duration, trajectory)
     result = closed_loop(plant, make_controller(controller, schedule), reference, settings, seed, progress, fast,
                          hold=start_hold(reference, params))

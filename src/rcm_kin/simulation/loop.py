@@ -101,8 +101,7 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: C
                 log[key][k] = value
         x = step(x, u)
         if not np.all(np.isfinite(x)):
-            raise NonFiniteResultError(f"the simulation diverged at t = {k * settings.period:.3f} s "
-                                       f"({controller.name})")
+            raise diverged(k, settings.period, controller.name)
         previous = measured
     return SimulationResult(controller.name, reference.time, ref_fw, log["measured"], log["position"],
                             log["command"], log["pwm"], settings)
@@ -132,3 +131,9 @@ def tracking_metrics(result: SimulationResult, skip: float = 0.0) -> dict[str, A
                                 float(np.sqrt(np.mean(u**2))), float(np.mean(np.abs(u))),
                                 float(np.count_nonzero(saturated) * result.settings.period))
     return out
+
+
+def diverged(tick: int, period: float, name: str) -> NonFiniteResultError:
+    """The error of a run (controller ``name``) whose state left the finite numbers at ``tick``
+    (period ``period`` s): one message for the readable loop and the compiled kernel."""
+    return NonFiniteResultError(f"the simulation diverged at t = {tick * period:.3f} s ({name})")
