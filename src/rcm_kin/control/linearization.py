@@ -112,14 +112,16 @@ class LinearizationGrid:
     B: np.ndarray    # (N, 6, 3)
 
 
-def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096) -> LinearizationGrid:
+def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = True) -> LinearizationGrid:
     """Linear models at (N, 3) poses: the compiled gravity and Jacobians
-    (:mod:`rcm_kin.symbolic.compiled`) mapped over chunks of ``chunk`` poses."""
+    (:mod:`rcm_kin.symbolic.compiled`) mapped over chunks of ``chunk`` poses. ``compile=False``
+    maps the interpreted functions (the same values to rounding, about 45 us a pose against 5):
+    for a model used once on a few poses, whose compilation would cost seconds."""
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     if Q.ndim != 2 or Q.shape[1] != 3 or not np.all(np.isfinite(Q)):
         raise RcmKinError(f"poses must be finite rows of 3 values ({', '.join(DRIVEN)}), got shape {Q.shape}")
     check_in_range(model, Q)
-    gravity, jacobians = _compiled(model)
+    gravity, jacobians = _compiled(model) if compile else (model.gravity, model.jacobians)
     (g,) = map_points(gravity, Q, chunk=chunk)
     u0 = g / model.drive.input_gain
     A, B = map_points(jacobians, np.hstack([Q, np.zeros_like(Q)]), u0, chunk=chunk)

@@ -136,7 +136,7 @@ def loop_margins(model: DrivenDynamics, schedule: GainSchedule, law, points: int
     pitches = np.linspace(schedule.pitch_deg[0], schedule.pitch_deg[-1], points)
     R, P = np.meshgrid(rolls, pitches)
     Q = np.column_stack([np.radians(R.ravel()), np.radians(P.ravel()), np.full(R.size, schedule.insertion)])
-    grid = linearize_grid(model, Q)
+    grid = linearize_grid(model, Q, compile=False)      # a drawn model, used once: not worth a compiler run
     max_real, radius, damping = -np.inf, 0.0, np.inf
     for r, p, A, B in zip(R.ravel(), P.ravel(), grid.A, grid.B):
         k_roll, k_pitch = law(r, p)
