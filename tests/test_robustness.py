@@ -20,6 +20,7 @@ import pytest
 import rcm_kin
 from rcm_kin import RcmKinError
 from rcm_kin.cli import main
+from rcm_kin.cli.common import check_finite
 from rcm_kin.dynamics.drive import DRIVEN, load_drive_parameters
 from rcm_kin.robustness.execution import batches_of, run_in_process, run_robustness
 from rcm_kin.robustness.sampling import (DEFAULT_RELATIVE_SPREAD, draw, read_standard_errors, sample_seeds,
@@ -174,6 +175,9 @@ def test_statistics_against_a_hand_computation(study):
 def test_spread_of_nothing_is_nan_and_becomes_null_in_json():
     s = spread([np.nan, np.nan])
     assert all(np.isnan(v) for v in vars(s).values())
+    assert s.as_dict() == dict.fromkeys(("p5", "median", "p95", "worst"))
+    check_finite({"spread": s.as_dict()})                     # what emit refuses before printing
+    assert json.loads(json.dumps(s.as_dict(), allow_nan=False)) == dict.fromkeys(("p5", "median", "p95", "worst"))
 
 
 def test_batches_cover_the_samples_in_order():

@@ -37,7 +37,8 @@ class Spread:
     worst: float                 # the largest (the smallest for a figure where less is worse)
 
     def as_dict(self) -> dict:
-        return {"p5": self.p5, "median": self.median, "p95": self.p95, "worst": self.worst}
+        """The four figures; None (JSON ``null``) for one no sample has (NaN)."""
+        return {k: None if np.isnan(v) else v for k, v in vars(self).items()}
 
 
 def spread(values, worst=np.max) -> Spread:
