@@ -77,6 +77,17 @@ def damping_ratios(eigenvalues: np.ndarray) -> np.ndarray:
     return -eigenvalues.real / np.abs(eigenvalues)
 
 
+def survey_poses(schedule: GainSchedule, points: int):
+    """The ``points x points`` grid spanning the schedule's, at its insertion: rolls and pitches
+    (deg, (points,)), their meshes ``R``, ``P`` (pitch rows, roll columns) and the poses ``Q``
+    ((points^2, 3): rad, rad, m) in the meshes' row order."""
+    rolls = np.linspace(schedule.roll_deg[0], schedule.roll_deg[-1], points)
+    pitches = np.linspace(schedule.pitch_deg[0], schedule.pitch_deg[-1], points)
+    P, R = np.meshgrid(pitches, rolls, indexing="ij")
+    Q = np.column_stack([np.radians(R.ravel()), np.radians(P.ravel()), np.full(R.size, schedule.insertion)])
+    return rolls, pitches, R, P, Q
+
+
 def stability_survey(model: DrivenDynamics, schedule: GainSchedule, points: int = 41,
                      gains=None) -> StabilitySurvey:
     """Frozen-gain stability on a ``points x points`` grid spanning the schedule's grid.
@@ -84,10 +95,7 @@ def stability_survey(model: DrivenDynamics, schedule: GainSchedule, points: int 
     ``gains(roll_deg, pitch_deg) -> (k_roll, k_pitch)`` defaults to the schedule's bilinear
     interpolation; pass another to judge other tables (e.g. the thesis's) on the same models."""
     gains = gains or (lambda r, p: scheduled_gains(schedule, r, p))
-    rolls = np.linspace(schedule.roll_deg[0], schedule.roll_deg[-1], points)
-    pitches = np.linspace(schedule.pitch_deg[0], schedule.pitch_deg[-1], points)
-    P, R = np.meshgrid(pitches, rolls, indexing="ij")
-    Q = np.column_stack([np.radians(R.ravel()), np.radians(P.ravel()), np.full(R.size, schedule.insertion)])
+    rolls, pitches, R, P, Q = survey_poses(schedule, points)
     grid = linearize_grid(model, Q)
     max_real, radius, min_damping = (np.empty(R.size) for _ in range(3))
     for k, (r, p, A, B) in enumerate(zip(R.ravel(), P.ravel(), grid.A, grid.B)):

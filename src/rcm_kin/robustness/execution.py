@@ -23,7 +23,7 @@ import logging
 import math
 import os
 import sys
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from typing import Callable, Iterator, Sequence
 
 from tqdm import tqdm
@@ -146,10 +146,9 @@ def run_robustness(study: Study, samples: int, seed: int = 0, client=None, batch
     work is checked first (:func:`rcm_kin.robustness.work.check_robustness`)."""
     check_robustness(study.experiment, study.duration, len(study.controllers), samples)
     seeds = list(enumerate(sample_seeds(seed, samples)))
-    if client is None:
-        with dask_client() as own:
-            return run_robustness(study, samples, seed, own, batch_size, progress, on_batch)
-    workers = len(client.nthreads()) if batch_size is None else 1
-    batches = batches_of(seeds, batch_size or default_batch_size(samples, workers))
-    results = map_batches(client, _batch, batches, progress, "robustness", on_batch, study=study)
+    with dask_client() if client is None else nullcontext(client) as client:
+        if batch_size is None:
+            batch_size = default_batch_size(samples, len(client.nthreads()))
+        results = map_batches(client, _batch, batches_of(seeds, batch_size), progress, "robustness", on_batch,
+                              study=study)
     return summarise(study, seed, [outcome for batch in results for outcome in batch])

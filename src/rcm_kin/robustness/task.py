@@ -33,7 +33,7 @@ import numpy as np
 from rcm_kin.control.gain_schedule import (THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, bilinear,
                                            closed_loop_matrix, scheduled_gains)
 from rcm_kin.control.linearization import linearize_grid
-from rcm_kin.control.stability import damping_ratios, firmware_loop_matrix
+from rcm_kin.control.stability import damping_ratios, firmware_loop_matrix, survey_poses
 from rcm_kin.control.thesis_reference import K_PITCH, K_ROLL
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
@@ -132,10 +132,7 @@ def loop_margins(model: DrivenDynamics, schedule: GainSchedule, law, points: int
     the deadbeat modes, the stored previous angles, left out). A law without integral action
     (pitch Ki 0) leaves the loops' error integral a mode nothing depends on (exactly 0 in s, 1 in
     z); it is left out too, so a P loop is judged on its own modes."""
-    rolls = np.linspace(schedule.roll_deg[0], schedule.roll_deg[-1], points)
-    pitches = np.linspace(schedule.pitch_deg[0], schedule.pitch_deg[-1], points)
-    R, P = np.meshgrid(rolls, pitches)
-    Q = np.column_stack([np.radians(R.ravel()), np.radians(P.ravel()), np.full(R.size, schedule.insertion)])
+    _, _, R, P, Q = survey_poses(schedule, points)
     grid = linearize_grid(model, Q, compile=False)      # a drawn model, used once: not worth a compiler run
     max_real, radius, damping = -np.inf, 0.0, np.inf
     for r, p, A, B in zip(R.ravel(), P.ravel(), grid.A, grid.B):
