@@ -448,6 +448,10 @@ def test_work_is_checked_before_any_cluster_starts(monkeypatch, capsys, tmp_path
     err = capsys.readouterr().err
     assert err.startswith("error: 10000 s at 400 Hz is 4,000,001 controller periods; the limit is "
                           f"{MAX_SAMPLES:,}") and err.count("\n") == 1
+    # statistics that would start after the default sinusoid's 6 s
+    assert main(one + ["--samples", "1", "--skip", "7"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: the statistics start within the run") and err.count("\n") == 1
     # the total: 10^6 samples x 1 controller x (6 s x 400 Hz + 1) periods of the default sinusoid
     assert main(one + ["--samples", "1000000"]) == 2
     assert capsys.readouterr().err.startswith("error: 1,000,000 samples x 1 controllers x 2,401 periods is "

@@ -71,7 +71,7 @@ def cmd_robustness(args) -> None:
     errors = read_standard_errors(args.uncertainty) if args.uncertainty else None
     study = Study(params, uncertain_parameters(params, errors), tuple(dict.fromkeys(args.controller)),
                   args.experiment, args.duration, args.skip)
-    check_robustness(study.experiment, study.duration, len(study.controllers), args.samples)
+    check_robustness(study, args.samples)
     out = output_folder(args.out) if args.out else None
     with dask_client(args.scheduler, args.workers) as client:
         result = run_robustness(study, args.samples, args.seed, client, args.batch_size, progress=progress_wanted(args))

@@ -135,7 +135,7 @@ def run_in_process(study: Study, samples: int, seed: int = 0) -> Robustness:
     """The same samples one after another in this process, no cluster (for a caller that is a
     worker of a pool already, such as the report): equal to :func:`run_robustness` for the same
     seed (a seed per sample)."""
-    check_robustness(study.experiment, study.duration, len(study.controllers), samples)
+    check_robustness(study, samples)
     return summarise(study, seed, run_batch(study, list(enumerate(sample_seeds(seed, samples)))))
 
 
@@ -144,7 +144,7 @@ def run_robustness(study: Study, samples: int, seed: int = 0, client=None, batch
     """``samples`` samples of ``study`` on ``client``'s cluster (default: an embedded local
     cluster), seeded by ``seed``; the same result whatever the cluster and the batch size. The
     work is checked first (:func:`rcm_kin.robustness.work.check_robustness`)."""
-    check_robustness(study.experiment, study.duration, len(study.controllers), samples)
+    check_robustness(study, samples)
     seeds = list(enumerate(sample_seeds(seed, samples)))
     with dask_client() if client is None else nullcontext(client) as client:
         if batch_size is None:

@@ -11,9 +11,14 @@ the cluster starts, with the simulator's own message; and the total work is boun
 
 from __future__ import annotations
 
-from rcm_kin.errors import WorkLimitError
+from typing import TYPE_CHECKING
+
+from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.simulation.experiments import experiment_reference
 from rcm_kin.simulation.firmware import FirmwareSettings
+
+if TYPE_CHECKING:
+    from rcm_kin.robustness.task import Study
 
 # controller periods simulated in all: a sample's run goes at about 1.5e4 periods per second per
 # core (measured, sine, P controller), so this is about a core-day
@@ -34,9 +39,14 @@ def check_periods(total: int, what: str, fewer: str) -> None:
                              f"{fewer}")
 
 
-def check_robustness(experiment: str, duration: float | None, controllers: int, samples: int) -> None:
-    """Refuse a robustness run over the simulator's per-run limit or :data:`MAX_PERIODS` in all."""
-    periods = controller_periods(experiment, duration)
+def check_robustness(study: Study, samples: int) -> None:
+    """Refuse a robustness run over the simulator's per-run limit or :data:`MAX_PERIODS` in all,
+    or whose statistics would start (``study.skip``) after its run ends."""
+    reference = experiment_reference(study.experiment, FirmwareSettings().period, study.duration)
+    if study.skip >= reference.time[-1]:
+        raise RcmKinError(f"the statistics start within the run: 0 <= skip < duration, got skip {study.skip} s and "
+                          f"duration {reference.time[-1]:g} s")
+    periods, controllers = reference.time.size, len(study.controllers)
     check_periods(samples * controllers * periods, f"{samples:,} samples x {controllers} controllers x {periods:,} "
                   "periods", "fewer samples or controllers, or a shorter --duration")
 
