@@ -29,7 +29,7 @@ from rcm_kin.dynamics.stick_slip import (NAMES, TERM_PARAMETERS, TERMS, AxisFric
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import ENCODER_COUNT, HOME_INSERTION, PWM_LIMIT
 from rcm_kin.identification.recorded_law import RecordedLaw, recover_law
-from rcm_kin.identification.records import resample
+from rcm_kin.identification.records import resample, tick_period
 from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry, step_index
 
 PERIOD = 1e-3          # s: the logs are resampled to this grid (PWM held, angle interpolated)
@@ -79,10 +79,7 @@ def whole_log(source: str | Path | TelemetryLog, joint: str, period: float | Non
     log = source if isinstance(source, TelemetryLog) else load_telemetry(source)
     if period is None:
         log.require(joint)
-        t, u, y = log.time, log.pwm[joint], log.position[joint]
-        if t.size < 10 or not t[-1] > t[0]:
-            raise RcmKinError(f"{log.path.name}: too few time-stamped samples to identify from")
-        period = float((t[-1] - t[0]) / (t.size - 1))
+        u, y, period = log.pwm[joint], log.position[joint], tick_period(log)
     else:
         u, y, period = resample(log, joint, period)
     pose = np.array([0.0, 0.0, HOME_INSERTION])

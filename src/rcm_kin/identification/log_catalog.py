@@ -30,6 +30,7 @@ import numpy as np
 from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.hardware import PWM_LIMIT
 from rcm_kin.identification.recorded_law import recover_law
+from rcm_kin.identification.rosbag import BAG_SUFFIXES
 from rcm_kin.identification.telemetry import TelemetryLog, is_bag, load_telemetry, telemetry_files
 
 HOLD = 0.5            # s a step's PWM must hold before and after its one change
@@ -82,7 +83,7 @@ def _log_files(folder: Path) -> list[Path]:
     :data:`MAX_FOLDERS` folders or :data:`MAX_LOGS` logs is refused (unreadable folders are skipped)."""
     logs = 0
     for visited, (root, _, names) in enumerate(os.walk(folder), start=1):
-        logs += sum(n.endswith((".csv", ".mcap", ".db3")) for n in names)
+        logs += sum(n.endswith((".csv", *BAG_SUFFIXES)) for n in names)
         if visited > MAX_FOLDERS or logs > MAX_LOGS:
             raise WorkLimitError(f"more than {MAX_FOLDERS} folders or {MAX_LOGS} logs below {folder}: "
                                  "give the folder of the logs")

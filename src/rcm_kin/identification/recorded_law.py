@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.identification.records import tick_period
 from rcm_kin.identification.telemetry import TelemetryLog
 
 EXPLAINED = 0.95       # least fraction of samples the law must reproduce to EXACT counts
@@ -70,10 +70,8 @@ def recover_law(log: TelemetryLog, joint: str, limit: float) -> RecordedLaw:
     interval (the firmware's period: its stamps are whole milliseconds, 2 or 3 ms around a 2.4 ms
     loop, and the law is exact only with a constant period); check :attr:`RecordedLaw.explained`
     before using it."""
-    t, y, u = log.time, np.radians(log.position[joint]), log.pwm[joint]
-    if t.size < 10 or not t[-1] > t[0]:
-        raise RcmKinError(f"{log.path.name}: too few time-stamped samples to read a controller from")
-    rate = np.r_[0.0, np.diff(y)] / ((t[-1] - t[0]) / (t.size - 1))
+    y, u = np.radians(log.position[joint]), log.pwm[joint]
+    rate = np.r_[0.0, np.diff(y)] / tick_period(log)
     inside = np.abs(u) < limit - 1.0              # saturated samples tell nothing about the law
     A = np.column_stack([np.ones(inside.sum()), y[inside], rate[inside]])
     sign = np.sign(u[inside] - np.median(u[inside]))

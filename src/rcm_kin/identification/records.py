@@ -27,6 +27,16 @@ class Record:
     y0: float              # deg
 
 
+def tick_period(log: TelemetryLog) -> float:
+    """The mean interval (s) of ``log``'s samples, each taken as one controller tick (a closed-loop
+    log: the firmware acted once per logged sample; its stamps are whole milliseconds, 2 or 3 ms
+    apart around a 2.4 ms loop, so only the mean is the period)."""
+    t = log.time
+    if t.size < 10 or not t[-1] > t[0]:
+        raise RcmKinError(f"{log.path.name}: too few time-stamped samples to identify from")
+    return float((t[-1] - t[0]) / (t.size - 1))
+
+
 def resample(log: TelemetryLog, joint: str, period: float | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """``(u, y, period)`` on a uniform grid: the PWM held (previous sample, as the driver holds it),
     the angle linearly interpolated. ``period`` defaults to the median sample interval."""
