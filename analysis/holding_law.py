@@ -28,19 +28,24 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
+from rcm_kin.errors import RcmKinError  # noqa: E402
+from rcm_kin.identification.records import tick_period  # noqa: E402
 from rcm_kin.identification.telemetry import load_telemetry, telemetry_files  # noqa: E402
 
 
-def holding_law(path) -> dict:
-    """The pitch law of one roll-step log and the split of its mean PWM (counts)."""
-    log = load_telemetry(path)
+def holding_law(path, log=None) -> dict:
+    """The pitch law of one roll-step log (``log``: the file at ``path`` already read) and the split
+    of its mean PWM (counts)."""
+    named = re.search(r"pitch_(-?\d+)", path.name)
+    if named is None:
+        raise RcmKinError(f"{path.name}: the nominal pitch is read from the name (..._pitch_P.csv); rename the log")
+    log = log or load_telemetry(path)
     t, y, u = log.time, log.position["pitch"], log.pwm["pitch"]
-    period = float(np.mean(np.diff(t)))
-    v = np.r_[0.0, np.diff(y)] / period
+    v = np.r_[0.0, np.diff(y)] / tick_period(log)
     integral = np.r_[0.0, np.cumsum(y[1:] * np.diff(t))]
     X = np.column_stack([np.ones_like(t), y, v, integral, t])
     coef, *_ = np.linalg.lstsq(X, u, rcond=None)
-    nominal = float(re.search(r"pitch_(-?\d+)", path.name).group(1))
+    nominal = float(named.group(1))
     proportional = -coef[1] * (nominal - float(np.mean(y)))
     return {"log": path.name, "Kp": coef[1], "Kd": -coef[2], "Ki": coef[3],
             "residual_rms": float(np.sqrt(np.mean((u - X @ coef) ** 2))), "mean_pwm": float(np.mean(u)),
@@ -54,10 +59,14 @@ def main() -> None:
     args = parser.parse_args()
     print(f"{'log':<42} {'Kp':>7} {'Kd':>6} {'Ki':>6} {'rms':>6} {'PWM':>7} {'y-r':>6} {'P':>6} {'I':>7}")
     for path in telemetry_files(args.folder, "roll_step_response_*"):
-        if np.ptp(load_telemetry(path).position["pitch"]) == 0:
+        log = load_telemetry(path)
+        if np.ptp(log.position["pitch"]) == 0:
             print(f"{path.name:<42} the pitch never leaves one encoder count: its law cannot be read back")
             continue
-        h = holding_law(path)
+        try:
+            h = holding_law(path, log)
+        except RcmKinError as exc:
+            parser.exit(2, f"error: {exc}\n")
         print(f"{h['log']:<42} {h['Kp']:7.1f} {h['Kd']:6.3f} {h['Ki']:6.3f} {h['residual_rms']:6.3f} "
               f"{h['mean_pwm']:7.1f} {h['offset_deg']:6.2f} {h['proportional']:6.1f} {h['integral']:7.1f}")
 

@@ -36,13 +36,13 @@ from rcm_kin.identification.telemetry import load_telemetry  # noqa: E402
 
 def damping_bound(path) -> dict:
     """Speed peak (deg/s), PWM there (counts) and the bound on the viscous friction (N m s/rad)."""
-    log = load_telemetry(path)
-    angle = -log.position["pitch"] * ENCODER_COUNT[DRIVEN.index("pitch")]     # counts -> deg
+    log, i = load_telemetry(path), DRIVEN.index("pitch")
+    angle = -log.position["pitch"] * ENCODER_COUNT[i]                   # counts -> deg
     t, u = log.time, log.pwm["pitch"]
     speed = np.gradient(angle, t)                                       # central differences
     k = int(np.argmax(speed))
     params = load_drive_parameters()
-    drive, i = drive_constants(params), DRIVEN.index("pitch")
+    drive = drive_constants(params)
     emf = drive.damping[i] - params["pitch"].viscous
     v_peak = np.radians(speed[k])
     bound = abs(drive.input_gain[i] * u[k]) / v_peak - emf
