@@ -11,7 +11,7 @@ from pathlib import Path
 
 from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.identification.pose_models import identify_folder, identify_log, pose_table_rows, write_pose_table
-from rcm_kin.robot import load_robot
+from rcm_kin.model import load_robot
 
 
 def main() -> None:

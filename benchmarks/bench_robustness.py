@@ -24,7 +24,8 @@ import sys  # noqa: E402
 import time  # noqa: E402
 
 from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
-from rcm_kin.robustness.execution import dask_client, run_robustness  # noqa: E402
+from rcm_kin.parallel import dask_client  # noqa: E402
+from rcm_kin.robustness.execution import run_robustness  # noqa: E402
 from rcm_kin.robustness.sampling import sample_seeds, uncertain_parameters  # noqa: E402
 from rcm_kin.robustness.statistics import summarise  # noqa: E402
 from rcm_kin.robustness.task import Study, run_sample  # noqa: E402

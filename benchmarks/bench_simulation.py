@@ -34,7 +34,7 @@ import pinocchio as pin  # noqa: E402
 from common import best_of, per_call, report  # noqa: E402
 
 from rcm_kin import load_robot  # noqa: E402
-from rcm_kin.closure.reduced import tree_configuration  # noqa: E402
+from rcm_kin.model.reduced import tree_configuration  # noqa: E402
 from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
 from rcm_kin.dynamics.state_space import drive_constants, driven_dynamics  # noqa: E402
 from rcm_kin.hardware import FIRMWARE_PERIOD, PWM_LIMIT  # noqa: E402

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from rcm_kin.errors import NonFiniteResultError, RcmKinError
-from rcm_kin.robot import load_robot, robot_names
+from rcm_kin.model import load_robot, robot_names
 
 RAW = argparse.RawDescriptionHelpFormatter      # keeps the epilogs' example lines
 PARAMS_HELP = "drive parameter TOML (default: the shipped calibrated set)"

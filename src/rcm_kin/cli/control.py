@@ -102,7 +102,7 @@ def cmd_linearize(args) -> None:
 
 
 def cmd_schedule(args) -> None:
-    from rcm_kin.control.firmware_export import write_gain_schedule
+    from rcm_kin.codegen.firmware_export import write_gain_schedule
     from rcm_kin.control.gain_schedule import parse_grid, schedule_gains
     from rcm_kin.control.stability import stability_survey
 

@@ -102,7 +102,7 @@ def cmd_predict(args) -> None:
              f"{np.degrees(log.measured[-1]):.3f} deg, predicted {np.degrees(predicted[-1]):.3f} deg "
              f"(error {check.final_error_deg:+.3f})"]
     if plot:
-        from rcm_kin.report.figures import prediction_figure
+        from rcm_kin.plotting import prediction_figure
 
         path = prediction_figure(log.time, np.degrees(log.measured), np.degrees(predicted), plot,
                                  f"{log.name}, {args.joint}: fit {check.fit_percent:.1f} %")

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from rcm_kin.cli.common import RAW, add_force, add_json, add_params, any_robot, emit, new_output
 from rcm_kin.errors import RcmKinError
-from rcm_kin.robot import load_robot
+from rcm_kin.model import load_robot
 
 EPILOG = ("examples: rcm-kin export psm --mjcf psm.xml   (MuJoCo: python -m mujoco.viewer --mjcf psm.xml)\n"
           "          rcm-kin export davinci --mjcf davinci.xml\n"

@@ -59,7 +59,8 @@ def add_robustness(sub) -> None:
 
 def cmd_robustness(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.robustness.execution import dask_client, run_robustness
+    from rcm_kin.parallel import dask_client
+    from rcm_kin.robustness.execution import run_robustness
     from rcm_kin.robustness.sampling import read_standard_errors, uncertain_parameters
     from rcm_kin.robustness.task import Study
     from rcm_kin.robustness.work import check_robustness
@@ -122,7 +123,7 @@ def cmd_sweep(args) -> None:
 
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.robustness import figures, sweeps
-    from rcm_kin.robustness.execution import dask_client, map_batches
+    from rcm_kin.parallel import dask_client, map_batches
     from rcm_kin.robustness.work import check_counterweight_sweep, check_weights_sweep
 
     require_psm(args, "the design sweeps are of the PSM, not '{robot}'")

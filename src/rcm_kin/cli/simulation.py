@@ -68,7 +68,7 @@ def cmd_simulate(args) -> None:
         f"{axis:5}  max {m.max_error_deg:.3f}  mean {m.mean_error_deg:.3f}  RMS {m.rms_error_deg:.3f} deg;  "
         f"PWM RMS {m.rms_pwm:.1f}, saturated {m.saturation_s:.3f} s" for axis, m in metrics.items()]
     if args.plot:
-        from rcm_kin.report.figures import tracking_figure
+        from rcm_kin.plotting import tracking_figure
 
         path = tracking_figure(result, output_folder(args.plot) / f"{args.experiment}_{args.controller}.png",
                                title=f"{args.experiment}, {args.controller}:")

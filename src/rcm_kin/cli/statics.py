@@ -8,7 +8,7 @@ from rcm_kin.cli.common import (RAW, add_force, add_json, add_params, any_robot,
                                 new_output, path_text, progress_wanted, psm_robot, require_psm)
 from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.hardware import HOME_INSERTION
-from rcm_kin.robot import load_robot
+from rcm_kin.model import load_robot
 
 EPILOG_TORQUE_MAP = ("example: rcm-kin torque-map psm --roll=-30:30:61 --pitch=-30:30:61 --insertion 0.08 --out maps\n"
                      "large: rcm-kin torque-map psm --roll=-30:30:1001 --pitch=-30:30:1001 --format npz --out maps\n"
@@ -102,7 +102,7 @@ def cmd_torque_map(args) -> None:
 
 def cmd_calibrate(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters, write_parameters
-    from rcm_kin.statics.calibration import UNITS, calibrate, calibration_logs, holding_points
+    from rcm_kin.identification.calibration import UNITS, calibrate, calibration_logs, holding_points
 
     base = load_drive_parameters(args.params)
     out = new_output(args.out, args.force, (".toml",)) if args.out is not None else None

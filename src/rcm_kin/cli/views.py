@@ -7,7 +7,7 @@ from pathlib import Path
 from rcm_kin.cli.common import (RAW, add_force, add_json, any_robot, count, emit, joint_values, new_output,
                                 path_text, progress_wanted)
 from rcm_kin.errors import RcmKinError
-from rcm_kin.robot import load_robot
+from rcm_kin.model import load_robot
 from rcm_kin.statics.gravity_map import MAX_POSES
 
 EPILOG_VIEW = ("examples: rcm-kin view psm --q 10 -5 0.08 --deg --html psm.html   (self-contained page)\n"

@@ -26,7 +26,7 @@ from rcm_kin.control.friction_compensation import DEFAULT_RAMP_DEG_S, FrictionCo
 from rcm_kin.control.weights import Weights
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION, INSERTION_KP
-from rcm_kin.robot import load_robot
+from rcm_kin.model import load_robot
 
 if TYPE_CHECKING:
     from rcm_kin.dynamics.state_space import DrivenDynamics

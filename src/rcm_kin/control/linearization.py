@@ -21,9 +21,9 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg import expm
 
-from rcm_kin.closure.reduced import relation_jacobian, tree_configuration
+from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.dynamics.drive import DRIVEN, DRIVEN_UNIT
-from rcm_kin.dynamics.gravity import offset_moments
+from rcm_kin.model.gravity import offset_moments
 from rcm_kin.dynamics.state_space import DrivenDynamics, holding_pwm
 from rcm_kin.errors import RcmKinError
 from rcm_kin.symbolic.compiled import compiled, map_points
@@ -31,7 +31,7 @@ from rcm_kin.symbolic.compiled import compiled, map_points
 if TYPE_CHECKING:
     import control
 
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 
 @dataclass(frozen=True)

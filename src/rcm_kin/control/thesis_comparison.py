@@ -1,6 +1,6 @@
 """The thesis's measured gain tables (Tables 4.4-4.8) beside the model-based ones.
 
-The tables and the identified roll model are quoted in :mod:`rcm_kin.control.thesis_reference`.
+The tables and the identified roll model are quoted in :mod:`rcm_kin.thesis`.
 
 The thesis prints its tables with rows labelled pitch -20/0/+20 and columns roll -15/0/+15, but
 identified them on the grid pitch {-15, 0, 15} x roll {-20, 0, 20}; the rows here are that grid's
@@ -17,10 +17,10 @@ import numpy as np
 from rcm_kin.control.gain_schedule import (THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, bilinear,
                                            schedule_gains)
 from rcm_kin.control.stability import StabilitySurvey, stability_survey
-from rcm_kin.control.thesis_reference import K_PITCH, K_ROLL, ROLL_TF
+from rcm_kin.thesis import K_PITCH, K_ROLL, ROLL_TF
 from rcm_kin.dynamics.state_space import DrivenDynamics
 
-# the thesis's tables and identified roll model (sources: rcm_kin.control.thesis_reference)
+# the thesis's tables and identified roll model (sources: rcm_kin.thesis)
 THESIS_K_ROLL = K_ROLL
 THESIS_K_PITCH = K_PITCH
 THESIS_ROLL_TF = ROLL_TF

@@ -10,7 +10,7 @@ ratio ``gear_ratio`` (motor rad per joint rad, or per metre for the insertion), 
     pwm       = pwm_sign * voltage / volts_per_pwm    (counts; hardware sign)
 
 The parameters live in ``rcm_kin/parameters/psm_drive.toml`` (documented there); the shipped
-set is the calibrated one (:mod:`rcm_kin.statics.calibration`). The firmware's PWM saturation
+set is the calibrated one (:mod:`rcm_kin.identification.calibration`). The firmware's PWM saturation
 is not a drive constant: it comes from :data:`rcm_kin.hardware.PWM_LIMIT` (older files that
 still carry a ``pwm_limit`` key load when it agrees).
 """

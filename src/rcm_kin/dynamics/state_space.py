@@ -24,16 +24,16 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from rcm_kin.closure.reduced import relation_jacobian, tree_configuration
+from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, load_drive_parameters
-from rcm_kin.dynamics.gravity import offset_moments
+from rcm_kin.model.gravity import offset_moments
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import DRIVER_PWM_RANGE
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
 from rcm_kin.symbolic.tree import tree_joints, world_placements
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 
 @dataclass(frozen=True)

@@ -1,1 +1,12 @@
-"""Writers of the robot models in other tools' formats."""
+"""Writers of the robot models in other tools" formats."""
+
+import lazy_loader
+
+__all__ = ["write_mjcf"]
+
+__getattr__, __dir__, _ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "mjcf": ["write_mjcf"],
+    },
+)

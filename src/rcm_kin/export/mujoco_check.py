@@ -15,11 +15,11 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
-from rcm_kin.closure.reduced import reduced_mass_matrix
+from rcm_kin.model.reduced import reduced_mass_matrix
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 
 def at_keyframe(model, key: str, ctrl=None):

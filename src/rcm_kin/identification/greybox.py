@@ -34,7 +34,7 @@ from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.identification.records import Record, step_record
 from rcm_kin.identification.telemetry import load_telemetry
 from rcm_kin.identification.transfer_function import fit_percent
-from rcm_kin.robot import load_robot
+from rcm_kin.model import load_robot
 from rcm_kin.symbolic.integrators import rk4_map
 
 PARAMETERS = ("extra_inertia", "viscous", "coulomb", "coulomb_velocity")

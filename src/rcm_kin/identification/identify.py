@@ -25,7 +25,7 @@ from rcm_kin.identification.drive_train import (DEFAULT_TERMS, AxisLog, LogCheck
                                                 search_for, whole_log)
 from rcm_kin.identification.log_catalog import CatalogEntry, catalog, classify
 from rcm_kin.identification.telemetry import load_telemetry
-from rcm_kin.robot import load_robot
+from rcm_kin.model import load_robot
 
 CLOSED_LOOP_START = 5.0        # s: a closed-loop record starts at the first rest after this
 CLOSED_LOOP_SPAN = 10.0        # s of each closed-loop log used

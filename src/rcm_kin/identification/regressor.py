@@ -39,11 +39,11 @@ import numpy as np
 import pinocchio as pin
 import scipy.linalg
 
-from rcm_kin.closure.reduced import relation_jacobian, tree_configuration
+from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.errors import RcmKinError
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 N_PARAMETERS = 10   # standard parameters per body
 

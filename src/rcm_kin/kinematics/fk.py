@@ -3,16 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.closure.constrained import closure_residual
-from rcm_kin.closure.reduced import tree_configuration
-
-if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+from rcm_kin.model.constrained import closure_residual
+from rcm_kin.model.reduced import tree_configuration
+from rcm_kin.model.robot import Robot, RobotData
 
 
 @dataclass(frozen=True)
@@ -39,17 +35,3 @@ def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None) -
                   for name, fid in zip(frames, ids)}
     residual = closure_residual(robot, tree_configuration(robot, q))
     return ForwardKinematics(q, placements, float(np.max(np.abs(residual))) if residual.size else 0.0)
-
-
-def joint_axes_world(robot: Robot, q: np.ndarray) -> dict[str, np.ndarray]:
-    """Unit axis of every open-tree joint in the base frame at actuated ``q``: the rotation
-    axis of a revolute joint, the direction of motion of a prismatic one."""
-    q_tree = tree_configuration(robot, q)
-    model, data = robot.tree, robot.tree_data
-    pin.computeJointJacobians(model, data, q_tree)
-    axes = {}
-    for jid in range(1, model.njoints):
-        column = pin.getJointJacobian(model, data, jid, pin.LOCAL_WORLD_ALIGNED)[:, model.joints[jid].idx_v]
-        axis = column[3:] if np.linalg.norm(column[3:]) > 0.5 else column[:3]
-        axes[model.names[jid]] = axis / np.linalg.norm(axis)
-    return axes

@@ -17,7 +17,7 @@ import pinocchio as pin
 from rcm_kin.errors import RcmKinError
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 
 @dataclass(frozen=True)

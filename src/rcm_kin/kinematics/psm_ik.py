@@ -16,10 +16,11 @@ import numpy as np
 import pinocchio as pin
 
 from rcm_kin.errors import RcmKinError
-from rcm_kin.kinematics.fk import frame_placement, joint_axes_world
+from rcm_kin.kinematics.fk import frame_placement
+from rcm_kin.model.joints import joint_axes_world
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 ARM = ("roll", "pitch", "insertion")
 WRIST = ("instrument_roll", "wrist_pitch", "wrist_yaw")

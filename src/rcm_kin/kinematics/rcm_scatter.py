@@ -17,7 +17,7 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 
 @dataclass(frozen=True)

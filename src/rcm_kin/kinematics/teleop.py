@@ -20,7 +20,7 @@ from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.kinematics.psm_ik import shaft_tip_ik
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 
 @dataclass(frozen=True)

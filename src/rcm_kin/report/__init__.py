@@ -39,8 +39,8 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     returns its data object, the sections are put together from them and the index lists them in
     a fixed order, so the report is the same whatever the number of workers or the order in which
     they finish. A report that fails leaves an index.html that says so."""
-    from rcm_kin.robustness.execution import machine_workers
-    from rcm_kin.statics.calibration import calibration_logs
+    from rcm_kin.parallel import machine_workers
+    from rcm_kin.identification.calibration import calibration_logs
     from rcm_kin.statics.gravity_map import check_map_size
 
     if map_points < 2:

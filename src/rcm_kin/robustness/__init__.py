@@ -9,3 +9,17 @@ uncertainty, run on Dask.
 - :mod:`.figures`: empirical CDFs of the errors and margins;
 - :mod:`.sweeps`: the design sweeps (counterweights, LQR/LQI budgets) on the same cluster.
 """
+
+import lazy_loader
+
+__all__ = ["Robustness", "Study", "run_in_process", "run_robustness", "uncertain_parameters"]
+
+__getattr__, __dir__, _ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "task": ["Study"],
+        "execution": ["run_robustness", "run_in_process"],
+        "statistics": ["Robustness"],
+        "sampling": ["uncertain_parameters"],
+    },
+)

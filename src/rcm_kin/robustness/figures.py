@@ -6,16 +6,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from rcm_kin.report.figures import _save as save  # noqa: E402  (PNG at 110 dpi, figure freed)
-from rcm_kin.robustness.statistics import Robustness  # noqa: E402
+from rcm_kin.plotting import pyplot
+from rcm_kin.plotting import save_figure as save
+from rcm_kin.robustness.statistics import Robustness
 
 
 def ecdf(values) -> tuple[np.ndarray, np.ndarray]:
@@ -27,6 +22,9 @@ def ecdf(values) -> tuple[np.ndarray, np.ndarray]:
 def robustness_figure(result: Robustness, path: str | Path) -> Path:
     """Empirical CDFs of the largest roll and pitch errors (deg) and the firmware loop's spectral
     radius over the samples, a curve per controller (the PID has no radius)."""
+    plt = pyplot()
+    from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
+
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), layout="constrained")
     for c, name in enumerate(result.controllers):
         style = {"where": "post", "label": name, "color": f"C{c}"}
@@ -54,6 +52,7 @@ def robustness_figure(result: Robustness, path: str | Path) -> Path:
 def counterweight_figure(rows, path: str | Path) -> Path:
     """RMS holding PWM of roll and pitch against the main counterweight's mass, a curve per DPM
     counterweight mass (rows: :class:`~rcm_kin.robustness.sweeps.CounterweightRow`)."""
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained", sharey=True)
     for dpm in sorted({r.dpm_mass_kg for r in rows}):
         line = sorted((r for r in rows if r.dpm_mass_kg == dpm), key=lambda r: r.main_mass_kg)
@@ -71,6 +70,7 @@ def counterweight_figure(rows, path: str | Path) -> Path:
 def weights_figure(rows, path: str | Path) -> Path:
     """Largest tracking error against RMS PWM per axis, a point per LQR/LQI budget pair, labelled
     (rows: :class:`~rcm_kin.robustness.sweeps.WeightsRow`)."""
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained")
     for ax, joint in zip(axes, ("roll", "pitch")):
         x = [getattr(r, f"rms_pwm_{joint}") for r in rows]

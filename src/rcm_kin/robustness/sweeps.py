@@ -1,4 +1,4 @@
-"""Design sweeps, one Dask task per batch of design points (:func:`rcm_kin.robustness.execution.map_batches`).
+"""Design sweeps, one Dask task per batch of design points (:func:`rcm_kin.parallel.map_batches`).
 
 - counterweights: for each (main, DPM) counterweight mass pair, the positions that minimise the
   RMS holding PWM of roll and pitch over the workspace (:func:`rcm_kin.statics.counterweights.design_counterweights`,
@@ -24,7 +24,7 @@ from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import PWM_LIMIT
-from rcm_kin.robot import load_robot
+from rcm_kin.model import load_robot
 from rcm_kin.robustness.task import linear_law, loop_margins, sample_plant
 from rcm_kin.simulation.controllers import make_controller
 from rcm_kin.simulation.experiments import closed_loop, experiment_reference, start_hold

@@ -180,7 +180,7 @@ def psm_run(filter: str = "blend", trajectory=None, controller: str = "scheduled
     from rcm_kin.kinematics.fk import frame_placement
     from rcm_kin.kinematics.psm_ik import shaft_tip_ik
     from rcm_kin.kinematics.teleop import default_teleop_map, psm_targets
-    from rcm_kin.robot import load_robot
+    from rcm_kin.model import load_robot
     from rcm_kin.simulation.controllers import make_controller
     from rcm_kin.simulation.experiments import closed_loop, psm_plant_and_schedule, start_hold
     from rcm_kin.simulation.firmware import FirmwareSettings

@@ -4,7 +4,7 @@ saturation and the plant, tick after tick inside one numba function.
 The readable classes stay the reference (:func:`rcm_kin.simulation.loop.simulate` with the
 controllers of :mod:`rcm_kin.simulation.controllers` on
 :class:`~rcm_kin.simulation.plant.DriveTrainPlant` or the smooth model's period map); this
-kernel repeats their arithmetic operation for operation, and ``tests/test_compiled_loop.py``
+kernel repeats their arithmetic operation for operation, and ``tests/simulation/test_compiled_loop.py``
 holds it to them tick for tick.
 
 - Plants (:class:`CompiledPlant`): the CasADi functions compiled to C
@@ -48,7 +48,7 @@ from numba import types
 from numba.extending import intrinsic
 from tqdm import tqdm
 
-from rcm_kin.control import thesis_reference
+from rcm_kin import thesis as thesis_reference
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG
 from rcm_kin.dynamics import stick_slip
 from rcm_kin.dynamics.stick_slip import _advance, substep_count

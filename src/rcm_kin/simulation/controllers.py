@@ -27,7 +27,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from rcm_kin.control import thesis_reference
+from rcm_kin import thesis as thesis_reference
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, bilinear, scheduled_gains
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import INSERTION_KP, P_GAINS
@@ -193,7 +193,7 @@ class StateFeedbackController:
 @dataclass(frozen=True)
 class ThesisController:
     """The controller the thesis flashed, law and signs as in its firmware: the gain tables of
-    Tables 4.4-4.8 (:mod:`rcm_kin.control.thesis_reference`) interpolated bilinearly at the
+    Tables 4.4-4.8 (:mod:`rcm_kin.thesis`) interpolated bilinearly at the
     measured pose on the grid roll -20/0/20 x pitch -15/0/15 deg; roll ``u = -(Kp e + Kd v)``,
     pitch ``u = -(Kp e + Kd v + Ki E)`` with ``v`` the firmware's velocity estimate itself (not the
     velocity error) and ``E`` the error integral (conditional anti-windup); no feedforward (the

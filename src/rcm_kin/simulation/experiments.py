@@ -17,7 +17,7 @@ from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, Gai
 from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics, holding_pwm
 from rcm_kin.errors import JointLimitError, RcmKinError
-from rcm_kin.robot import load_robot
+from rcm_kin.model import load_robot
 from rcm_kin.simulation.compiled_loop import (CompiledPlant, compiled_drive_train, compiled_smooth, loop_law,
                                               simulate_compiled)
 from rcm_kin.simulation.controllers import MODEL_FREE, Controller, Hold, make_controller
@@ -130,7 +130,7 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
     whole loop in one compiled kernel (:mod:`rcm_kin.simulation.compiled_loop`); without a C
     compiler the per-tick fast path (:mod:`rcm_kin.simulation.fast_path`, compiled plant functions
     and stacked gain tables); ``False`` runs the readable reference classes. All give the same
-    result (tests/test_compiled_loop.py, tests/test_simulation.py). The run starts from the steady
+    result (tests/simulation/test_compiled_loop.py, tests/simulation/test_simulation.py). The run starts from the steady
     hold of the first pose (:func:`start_hold`): integrals charged with its holding PWM."""
     settings, params = settings or FirmwareSettings(), params or load_drive_parameters()
     plant = _built_plant(params, settings.period, 4, fast)

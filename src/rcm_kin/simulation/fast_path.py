@@ -1,6 +1,6 @@
 """The closed loop's fast path: the same arithmetic as the readable controllers and plants, with
 the per-tick overheads taken out. The readable classes (:mod:`rcm_kin.simulation.controllers`,
-:mod:`rcm_kin.simulation.plant`) stay the reference; ``tests/test_simulation.py`` runs both and
+:mod:`rcm_kin.simulation.plant`) stay the reference; ``tests/simulation/test_simulation.py`` runs both and
 compares them tick for tick.
 
 - :func:`fast_controller`: the gain-scheduled controllers with their tables stacked into one
@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
-from rcm_kin.control import thesis_reference
+from rcm_kin import thesis as thesis_reference
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG
 from rcm_kin.simulation.controllers import (Controller, Hold, Sample, StateFeedbackController, ThesisController,
                                           _conditional_integral, _insertion)

@@ -10,7 +10,7 @@ period ``T``. The stiffest term of the PSM's driven joints is the smoothed Coulo
 rest (pitch: slope ``F_c / v_c`` of 54 N m s/rad on 0.31 kg m^2, 170 1/s; roll 98 N m s/rad on
 1.12 kg m^2, 88 1/s; the insertion loop ~120 rad/s), which gives ``|lambda| h <= 0.11`` at 400 Hz
 and 4 substeps, inside
-RK4's stability region (2.8). ``tests/test_simulation.py`` compares one period with DOP853 at
+RK4's stability region (2.8). ``tests/simulation/test_simulation.py`` compares one period with DOP853 at
 rtol 1e-11: within 1e-7 rad in position and 2e-4 rad/s in velocity, the largest where a
 velocity reverses through the friction.
 """
@@ -30,7 +30,7 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.symbolic.integrators import rk4_map
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 
 def period_map(forward: ca.Function, period: float, substeps: int = 4) -> ca.Function:

@@ -14,13 +14,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from rcm_kin.control.thesis_reference import SINE_AMPLITUDE_DEG, SINE_CYCLE_S
+from rcm_kin.thesis import SINE_AMPLITUDE_DEG, SINE_CYCLE_S
 from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.kinematics.teleop import default_teleop_map, teleop_joint_targets
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 EXPERIMENTS = ("sine", "step", "target")
 BUNDLED_TRAJECTORY = "figure_eight.csv"
@@ -49,7 +49,7 @@ def _samples(duration: float, period: float) -> np.ndarray:
 
 def sine_reference(duration: float, period: float, amplitude_deg=SINE_AMPLITUDE_DEG, cycle: float = SINE_CYCLE_S,
                    insertion: float = HOME_INSERTION) -> Reference:
-    """The thesis sinusoid (:mod:`rcm_kin.control.thesis_reference`): roll 20 deg and pitch 15 deg
+    """The thesis sinusoid (:mod:`rcm_kin.thesis`): roll 20 deg and pitch 15 deg
     amplitude, 3 s period, together."""
     t = _samples(duration, period)
     w = 2 * np.pi / cycle

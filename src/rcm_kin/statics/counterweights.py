@@ -23,12 +23,12 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from rcm_kin.dynamics.drive import DriveParameters
-from rcm_kin.dynamics.gravity import gravity_batch, point_mass_gravity_batch
+from rcm_kin.model.gravity import gravity_batch, point_mass_gravity_batch
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 
 @dataclass(frozen=True)
@@ -120,7 +120,7 @@ def osmdv_designs(drive: DriveParameters, points: int = 13) -> OsmdvDesigns:
     built it and weighing the roll alone (what osMDV balanced), once designing both for roll
     and pitch."""
     from rcm_kin.hardware import DPM_COUNTERWEIGHT, MAIN_COUNTERWEIGHT
-    from rcm_kin.robot import load_robot
+    from rcm_kin.model import load_robot
 
     without = load_robot("psm", counterweights=False)
     cad = DriveParameters(drive.joints, {})

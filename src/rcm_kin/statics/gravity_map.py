@@ -2,7 +2,7 @@
 
 Grids are roll x pitch at one insertion, or a sweep of insertion; every pose is evaluated by
 the driven model's gravity compiled to C (:func:`driven_gravity`; the same numbers as the
-vectorised :func:`rcm_kin.dynamics.gravity.gravity_batch`) with the calibrated gravity offsets,
+vectorised :func:`rcm_kin.model.gravity.gravity_batch`) with the calibrated gravity offsets,
 then through the drive model. Angles in the tables are degrees (for people);
 torques N m (insertion N), voltage V, PWM counts with the hardware sign.
 """
@@ -21,11 +21,11 @@ from tqdm import tqdm
 
 from rcm_kin.csv_table import write_csv_blocks
 from rcm_kin.dynamics.drive import DRIVEN, DriveEffort, DriveParameters, drive_effort, load_drive_parameters
-from rcm_kin.dynamics.gravity import gravity_batch
+from rcm_kin.model.gravity import gravity_batch
 from rcm_kin.errors import RcmKinError, WorkLimitError
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 
 MAX_POSES = 1001 * 1001   # poses of one map (the largest benchmarked: bench_gravity.py)
@@ -211,7 +211,7 @@ def write_gravity_maps(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg
 
     if not figures:
         return gmap, write_tables()
-    from rcm_kin.report.figures import effort_heatmaps, insertion_curves, thesis_trend_curves
+    from rcm_kin.plotting import effort_heatmaps, insertion_curves, thesis_trend_curves
 
     # the tables are formatted in compiled code and written by the OS, both without the GIL, so on
     # a second thread they take (almost) no time from the figures, which are drawn in Python

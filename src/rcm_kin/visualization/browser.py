@@ -21,12 +21,12 @@ import meshcat.transformations as tf
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.closure.reduced import tree_configuration
+from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.errors import RcmKinError
 from rcm_kin.visualization.views import robot_view, show, write_html
 
 if TYPE_CHECKING:
-    from rcm_kin.robot import Robot
+    from rcm_kin.model import Robot
 
 HIDE_CONTROLS = ".dg{display:none !important}"   # CSS: the screenshot leaves out meshcat's control panel (dat.GUI)
 BROWSERS = ("chromium", "chromium-browser", "google-chrome")

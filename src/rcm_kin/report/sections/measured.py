@@ -8,7 +8,7 @@ from typing import ClassVar
 
 from rcm_kin.errors import output_folder
 from rcm_kin.report.render import Table, relative
-from rcm_kin.robot import load_robot
+from rcm_kin.model import load_robot
 
 LOG_FOLDERS = (("roll-step", "roll", "step, 2 poles"), ("pitch-prbs", "pitch", "PRBS, 3 poles"))
 
@@ -32,7 +32,7 @@ class MeasuredSection:
 
 
 def _calibration(data: Path, params) -> tuple[Table, int, tuple[float, float]]:
-    from rcm_kin.statics.calibration import calibrate, calibration_logs, holding_points
+    from rcm_kin.identification.calibration import calibrate, calibration_logs, holding_points
 
     points = holding_points(calibration_logs(data))
     cal = calibrate(load_robot("psm"), params, points)

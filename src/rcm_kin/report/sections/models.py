@@ -11,7 +11,7 @@ import yourdfpy
 
 from rcm_kin.kinematics.self_check import KinematicChecks, kinematic_checks
 from rcm_kin.report.render import Table
-from rcm_kin.robot import load_robot
+from rcm_kin.model import joint_table, load_robot
 
 
 @dataclass(frozen=True)
@@ -37,7 +37,7 @@ def model_summary(name: str) -> dict:
     robot = load_robot(name)
     urdf = yourdfpy.URDF.load(str(robot.description.urdf), build_scene_graph=False, load_meshes=False)
     masses = {link.name: link.inertial.mass for link in urdf.robot.links if link.inertial is not None}
-    joints = [dict(name=j.name, kind=j.kind, role=j.role, lower=j.lower, upper=j.upper) for j in robot.joint_table()]
+    joints = [dict(name=j.name, kind=j.kind, role=j.role, lower=j.lower, upper=j.upper) for j in joint_table(robot)]
     return dict(robot=name, joints=joints, link_masses=masses, total_mass=float(sum(masses.values())),
                 loops=[c.loop.name for c in robot.constraints])
 

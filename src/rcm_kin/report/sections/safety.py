@@ -12,7 +12,7 @@ import numpy as np
 
 from rcm_kin.errors import RcmKinError
 from rcm_kin.report.render import Table, relative
-from rcm_kin.robot import load_robot
+from rcm_kin.model import load_robot
 
 RCM_CHAINS = ("psm", "davinci", "davinci_rcm")
 
@@ -47,7 +47,7 @@ SCENARIO_HEADER = ("scenario", "filter", "min margin", "unsafe samples", "sample
 def scenario_runs(out: Path, scenarios=None, filters=None) -> ScenarioRuns:
     """Run ``scenarios`` x ``filters`` (default all); the barrier figure into
     ``out/safety_barriers.png``."""
-    from rcm_kin.report.figures import barrier_figure
+    from rcm_kin.plotting import barrier_figure
     from rcm_kin.safety.scenarios import FILTERS, SCENARIOS, run_scenario
 
     runs, rows, psm = {}, [], None

@@ -11,7 +11,7 @@ import numpy as np
 
 from rcm_kin.control.gain_schedule import GainSchedule
 from rcm_kin.control.thesis_comparison import ScheduleContrast
-from rcm_kin.control.thesis_reference import K_PITCH, K_ROLL, SOURCES
+from rcm_kin.thesis import K_PITCH, K_ROLL, SOURCES
 from rcm_kin.control.weights import Weights
 from rcm_kin.hardware import FIRMWARE_PERIOD, ROLL_FILTER
 from rcm_kin.report.render import Table, relative
@@ -61,12 +61,12 @@ def schedule_section(out: Path, survey_points: int = 21) -> ScheduleSection:
     """Schedule (:func:`rcm_kin.simulation.experiments.psm_schedule`, the one the simulations use),
     export (``out/gain_schedule``), stability surveys on ``survey_points`` per axis and the
     stability maps, with the numbers that set the two schedules apart."""
-    from rcm_kin.control.firmware_export import write_gain_schedule
+    from rcm_kin.codegen.firmware_export import write_gain_schedule
     from rcm_kin.control.thesis_comparison import compare_with_thesis, schedule_contrast
     from rcm_kin.dynamics.state_space import driven_dynamics
     from rcm_kin.errors import output_folder
-    from rcm_kin.report.figures import stability_maps
-    from rcm_kin.robot import load_robot
+    from rcm_kin.plotting import stability_maps
+    from rcm_kin.model import load_robot
     from rcm_kin.simulation.experiments import psm_schedule
 
     c = compare_with_thesis(driven_dynamics(load_robot("psm"), coulomb=False), survey_points, psm_schedule())

@@ -11,7 +11,7 @@ from typing import ClassVar
 import numpy as np
 
 from rcm_kin.control.gain_schedule import GainSchedule
-from rcm_kin.control.thesis_reference import (FIGURES, SINE_AMPLITUDE_DEG, SINE_CYCLE_S, SINE_TRACKING_ERROR_DEG,
+from rcm_kin.thesis import (FIGURES, SINE_AMPLITUDE_DEG, SINE_CYCLE_S, SINE_TRACKING_ERROR_DEG,
                                               SOURCES)
 from rcm_kin.errors import output_folder
 from rcm_kin.hardware import FIRMWARE_PERIOD
@@ -62,7 +62,7 @@ def _rows(experiment: str, result) -> list[list[str]]:
 
 def _animation(run, path: Path, period: float) -> Path:
     """A meshcat page of ``run``, the tool-tip path coloured by the pitch PWM."""
-    from rcm_kin.robot import load_robot
+    from rcm_kin.model import load_robot
     from rcm_kin.simulation.loop import si_units
     from rcm_kin.visualization.views import animate, frame_path, robot_view, scalar_trail, write_html
 
@@ -95,7 +95,7 @@ def tracking_experiment(out: Path, schedule: GainSchedule, experiment: str, traj
     compiled closed loop (:func:`rcm_kin.simulation.experiments.closed_loop`, equal to the readable
     reference loop tick for tick)."""
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.report.figures import error_comparison_figure, tracking_figure
+    from rcm_kin.plotting import error_comparison_figure, tracking_figure
     from rcm_kin.simulation.controllers import make_controller
     from rcm_kin.simulation.experiments import closed_loop, experiment_reference, psm_plant, start_hold
     from rcm_kin.simulation.firmware import FirmwareSettings

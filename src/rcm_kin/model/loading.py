@@ -1,0 +1,163 @@
+"""Load a robot description (URDF + sidecar) into its open-tree, constrained and reduced models.
+
+:func:`load_robot` caches by the *content* of the description's files (sidecar and URDF): a file
+edited on disk is reloaded at the next call, an unchanged one is built once.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from rcm_kin.errors import RcmKinError
+from rcm_kin.model.constrained import build_constraint_models, closure_residual
+from rcm_kin.model.description import RobotDescription, read_description
+from rcm_kin.model.reduced import build_reduced_model, tree_configuration
+from rcm_kin.model.robot import Robot
+
+GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, base frame (z up) of every bundled robot
+
+
+def urdf_dir() -> Path:
+    """The folder of bundled URDFs: inside the installed package, else the source checkout's ``urdf/``."""
+    package = Path(__file__).resolve().parents[1]
+    for candidate in (package / "urdf", package.parents[1] / "urdf"):
+        if candidate.is_dir() and any(candidate.glob("*.toml")):
+            return candidate
+    raise RcmKinError("the bundled robot models are missing: reinstall rcm-kin (pip install .)")
+
+
+def robot_names() -> list[str]:
+    """Names of the bundled robots (their sidecars in :func:`urdf_dir`)."""
+    return sorted(p.stem for p in urdf_dir().glob("*.toml"))
+
+
+def _joint_q_index(model: pin.Model, name: str, where: str) -> int:
+    if not model.existJointName(name):
+        raise RcmKinError(f"{where}: joint '{name}' is not in the URDF")
+    joint = model.joints[model.getJointId(name)]
+    if joint.nq != 1:
+        raise RcmKinError(f"{where}: joint '{name}' must be a 1-DOF revolute or prismatic joint")
+    return joint.idx_q
+
+
+def _urdf_without(description: RobotDescription, links: tuple[str, ...]) -> str:
+    """The URDF text with the mass of ``links`` removed (their geometry stays)."""
+    root = ET.parse(description.urdf).getroot()
+    found = set()
+    for link in root.iter("link"):
+        if link.get("name") in links:
+            found.add(link.get("name"))
+            for inertial in link.findall("inertial"):
+                link.remove(inertial)
+    if missing := set(links) - found:
+        raise RcmKinError(f"{description.urdf}: counterweight links {sorted(missing)} are not in the URDF")
+    return ET.tostring(root, encoding="unicode")
+
+
+def build_robot(description: RobotDescription, counterweights: bool = True) -> Robot:
+    """Build and check the open-tree, constrained and reduced models of one description.
+
+    ``counterweights=False`` drops the mass of the sidecar's counterweight links."""
+    where = str(description.urdf)
+    if counterweights:
+        tree = pin.buildModelFromUrdf(str(description.urdf))
+    else:
+        tree = pin.buildModelFromXML(_urdf_without(description, description.counterweights))
+    tree.gravity.linear = GRAVITY
+    if not tree.check(tree.createData()):
+        raise RcmKinError(f"{where}: Pinocchio's model check failed")
+
+    actuated = [_joint_q_index(tree, n, where) for n in description.actuated]
+    passive = [_joint_q_index(tree, p.joint, where) for p in description.passive]
+    for p in description.passive:
+        if p.follows not in description.actuated:
+            raise RcmKinError(f"{where}: passive joint '{p.joint}' follows '{p.follows}', which is not actuated")
+    unassigned = set(tree.names[1:]) - set(description.actuated) - {p.joint for p in description.passive}
+    if unassigned:
+        raise RcmKinError(f"{where}: joints {sorted(unassigned)} are neither actuated nor passive")
+    for frame in description.frames:
+        if not tree.existFrame(frame):
+            raise RcmKinError(f"{where}: frame of interest '{frame}' is not a link of the URDF")
+
+    reduced = build_reduced_model(tree, description.passive)
+    if not reduced.check(reduced.createData()):
+        raise RcmKinError(f"{where}: Pinocchio's check of the reduced model failed")
+    reduced_actuated = [reduced.joints[reduced.getJointId(n)].idx_q for n in description.actuated]
+
+    tree_q = np.array(actuated, dtype=int)
+    robot = Robot(
+        name=description.robot, description=description, with_counterweights=counterweights,
+        tree=tree, reduced=reduced,
+        constraints=build_constraint_models(tree, description.loops),
+        tree_q_actuated=tree_q, tree_q_passive=np.array(passive, dtype=int),
+        reduced_q_actuated=np.array(reduced_actuated, dtype=int),
+        lower=tree.lowerPositionLimit[tree_q].copy(), upper=tree.upperPositionLimit[tree_q].copy())
+    _check_passive_relations(robot)
+    return robot
+
+
+def _check_passive_relations(robot: Robot, tol: float = 1e-9) -> None:
+    """The sidecar's linear passive relations must close every loop (checked at the limits)."""
+    if not robot.constraints:
+        return
+    for q in (np.zeros(robot.nq), robot.lower, robot.upper, 0.5 * (robot.lower + robot.upper)):
+        residual = closure_residual(robot, tree_configuration(robot, q))
+        if np.max(np.abs(residual)) > tol:
+            raise RcmKinError(f"{robot.description.urdf}: the [[passive]] relations do not close the loops "
+                              f"(residual {np.max(np.abs(residual)):.2e} m at q = {np.round(q, 4).tolist()})")
+
+
+_CACHE: dict[tuple, Robot] = {}   # (sidecar path, counterweights, content digest) -> robot
+_CACHE_LOCK = threading.Lock()
+_CACHE_SIZE = 32
+
+
+def _sidecar_path(name: str) -> Path:
+    if not isinstance(name, (str, Path)):
+        raise RcmKinError(f"a robot is named by a string ({', '.join(robot_names())}) or a .toml path, "
+                          f"got {type(name).__name__}")
+    name = str(name)
+    if name.endswith(".toml"):
+        return Path(name)
+    if name in robot_names():
+        return urdf_dir() / f"{name}.toml"
+    raise RcmKinError(f"unknown robot '{name}'; choose one of: {', '.join(robot_names())}")
+
+
+def _digest(*paths: Path) -> str:
+    """SHA-256 of the files' bytes (a missing file is left to the reader's own error)."""
+    h = hashlib.sha256()
+    for path in paths:
+        try:
+            h.update(Path(path).read_bytes())
+        except OSError:
+            h.update(b"<unreadable>")
+        h.update(b"\0")
+    return h.hexdigest()
+
+
+def load_robot(name: str | Path, counterweights: bool = True) -> Robot:
+    """A bundled robot by name (see :func:`robot_names`) or any sidecar ``.toml`` by path; with
+    ``counterweights=False`` the counterweight links carry no mass.
+
+    The result is cached by the content of the sidecar and its URDF, so a call after either file
+    changed builds the new model; the cached robot holds no shared scratch data
+    (:meth:`Robot.create_data`)."""
+    path = _sidecar_path(name)
+    description = read_description(path)
+    key = (str(path.resolve()), bool(counterweights), _digest(path, description.urdf))
+    with _CACHE_LOCK:
+        robot = _CACHE.get(key)
+    if robot is None:
+        robot = build_robot(description, counterweights)
+        with _CACHE_LOCK:
+            if len(_CACHE) >= _CACHE_SIZE:
+                _CACHE.pop(next(iter(_CACHE)))
+            robot = _CACHE.setdefault(key, robot)
+    return robot

@@ -1,0 +1,143 @@
+"""The ``Robot`` type: a robot's Pinocchio models and index maps (data only; built by
+:mod:`rcm_kin.model.loading`).
+
+Coordinates: ``q`` of every public function is the vector of *actuated* joints in the sidecar's
+``actuated`` order (rad for revolute, m for prismatic). ``q_tree`` is the open tree's full
+configuration, passive joints of the loops included.
+
+Model/Data split, as in Pinocchio: a ``Robot`` holds models, never one shared workspace.
+:meth:`Robot.create_data` gives the caller a workspace of its own (:class:`RobotData`); functions
+that take ``data=None`` use the calling thread's own workspace (:attr:`Robot.scratch`), so two
+threads using one robot never share scratch data.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from rcm_kin.errors import JointLimitError, RcmKinError
+from rcm_kin.model.description import RobotDescription
+
+
+@dataclass(frozen=True)
+class RobotData:
+    """Pinocchio scratch workspaces of one robot's open-tree and reduced models."""
+
+    tree: pin.Data
+    reduced: pin.Data
+
+
+@dataclass(frozen=True)
+class JointRow:
+    """One open-tree joint: limits in rad or m, unit axis in the base frame at q = 0."""
+
+    name: str
+    kind: str           # 'revolute' or 'prismatic'
+    role: str           # 'actuated' or 'passive'
+    lower: float
+    upper: float
+    axis: np.ndarray
+
+
+@dataclass(eq=False)
+class Robot:
+    """A robot's models and index maps (no scratch data: see :meth:`create_data`)."""
+
+    name: str
+    description: RobotDescription
+    with_counterweights: bool
+    tree: pin.Model                 # open tree, all joints independent
+    reduced: pin.Model              # actuated coordinates; loop joints are mimic joints
+    constraints: list               # Pinocchio constraint models, one per loop
+    tree_q_actuated: np.ndarray     # index in q_tree of each actuated joint (actuated order)
+    tree_q_passive: np.ndarray      # index in q_tree of each passive joint (description order)
+    reduced_q_actuated: np.ndarray  # index in the reduced q of each actuated joint
+    lower: np.ndarray               # actuated joint limits (rad or m)
+    upper: np.ndarray
+    _threads: threading.local = field(default_factory=threading.local, repr=False)
+
+    def create_data(self) -> RobotData:
+        """New scratch workspaces for the caller alone (Pinocchio's ``model.createData()``)."""
+        return RobotData(self.tree.createData(), self.reduced.createData())
+
+    @property
+    def scratch(self) -> RobotData:
+        """The calling thread's own workspaces (created on first use in each thread)."""
+        data = getattr(self._threads, "data", None)
+        if data is None:
+            data = self._threads.data = self.create_data()
+        return data
+
+    @property
+    def tree_data(self) -> pin.Data:
+        """The calling thread's workspace of the open tree."""
+        return self.scratch.tree
+
+    @property
+    def reduced_data(self) -> pin.Data:
+        """The calling thread's workspace of the reduced model."""
+        return self.scratch.reduced
+
+    @property
+    def actuated(self) -> tuple[str, ...]:
+        """Names of the actuated joints, in the order of ``q``."""
+        return self.description.actuated
+
+    @property
+    def nq(self) -> int:
+        """Number of actuated joints."""
+        return len(self.description.actuated)
+
+    def joint_kind(self, name: str) -> str:
+        """'revolute' or 'prismatic'."""
+        shortname = self.tree.joints[self.tree.getJointId(name)].shortname()
+        # Pinocchio: JointModelPX/PY/PZ (axis-aligned) or JointModelPrismaticUnaligned
+        prismatic = "Prismatic" in shortname or shortname in ("JointModelPX", "JointModelPY", "JointModelPZ")
+        return "prismatic" if prismatic else "revolute"
+
+    def frame_id(self, name: str) -> int:
+        """The reduced model's id of frame ``name``, or an error listing the frames of interest."""
+        if not self.reduced.existFrame(name):
+            raise RcmKinError(f"{self.name} has no frame '{name}'; frames of interest: "
+                              f"{', '.join(self.description.frames)}")
+        return self.reduced.getFrameId(name)
+
+    def to_reduced(self, q: np.ndarray) -> np.ndarray:
+        """Actuated-order vector -> the reduced model's configuration vector."""
+        q_red = np.zeros(self.reduced.nq)
+        q_red[self.reduced_q_actuated] = q
+        return q_red
+
+    def from_reduced(self, q_red: np.ndarray) -> np.ndarray:
+        """The reduced model's configuration vector -> actuated order."""
+        return np.asarray(q_red)[self.reduced_q_actuated]
+
+    def check_q(self, q, *, allow_short: bool = False) -> np.ndarray:
+        """``q`` as a float array of the actuated size, or a clear error. Short vectors are
+        padded with zeros when ``allow_short``."""
+        try:
+            q = np.atleast_1d(np.asarray(q, dtype=float))
+        except (TypeError, ValueError):
+            raise RcmKinError(f"joint values must be numbers ({', '.join(self.actuated)}), got {str(q)[:60]!r}") from None
+        if q.ndim != 1 or q.size > self.nq or (q.size < self.nq and not allow_short):
+            raise RcmKinError(f"{self.name} takes {self.nq} joint values ({', '.join(self.actuated)}), got {q.size}")
+        if not np.all(np.isfinite(q)):
+            raise RcmKinError(f"joint values must be finite numbers, got {q.tolist()}")
+        return np.concatenate([q, np.zeros(self.nq - q.size)])
+
+    def check_limits(self, q, tol: float = 1e-9) -> np.ndarray:
+        """``q`` (actuated, rad or m) unchanged, or a clear error naming every joint outside its limits.
+        The one joint-limit policy of rcm_kin: poses outside the limits are refused, not computed."""
+        q = np.asarray(q, dtype=float)
+        outside = (q < self.lower - tol) | (q > self.upper + tol)
+        if np.any(outside):
+            shown = lambda i, x: (f"{np.degrees(x):.6g} deg" if self.joint_kind(self.actuated[i]) == "revolute"  # noqa: E731
+                                  else f"{x:.6g} m")
+            raise JointLimitError("outside the joint limits: " + "; ".join(
+                f"{self.actuated[i]} {shown(i, q[i])} not in [{shown(i, self.lower[i])}, {shown(i, self.upper[i])}]"
+                for i in np.flatnonzero(outside)))
+        return q

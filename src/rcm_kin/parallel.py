@@ -1,0 +1,115 @@
+"""Batches of independent work on a ``dask.distributed`` cluster (generic plumbing).
+
+Without a scheduler address a run starts an embedded :class:`~distributed.LocalCluster` sized
+to the machine (one worker process per core, one thread each: the simulations are pure Python
+and NumPy, which threads would serialise); with ``tcp://HOST:PORT`` it runs on an existing
+cluster (``dask scheduler`` and ``dask worker ADDRESS`` processes). Every worker needs rcm-kin
+importable. Batches are gathered in order, so results do not depend on the cluster. Dask is
+imported when a cluster is used, not when this module is.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+import os
+import sys
+from contextlib import contextmanager
+from typing import Callable, Iterator, Sequence
+
+from tqdm import tqdm
+
+from rcm_kin.errors import RcmKinError
+
+CONNECT_SECONDS = 10.0      # to reach an existing scheduler and hear it answer
+BATCHES_PER_WORKER = 4      # default batch size: about this many batches per worker, for balance
+
+
+def machine_workers() -> int:
+    """Worker processes of the embedded cluster: the cores this process may use."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+@contextmanager
+def dask_client(scheduler: str | None = None, workers: int | None = None) -> Iterator:
+    """A ``distributed.Client``: on the scheduler at ``scheduler`` (``tcp://HOST:PORT``), or on an
+    embedded local cluster of ``workers`` processes (default :func:`machine_workers`), one thread
+    each, closed on exit."""
+    from distributed import Client, LocalCluster
+
+    if scheduler is None:
+        n = workers or machine_workers()
+        if n < 1:
+            raise RcmKinError(f"the local cluster needs at least 1 worker, got {n}")
+        # silence_logs: the workers' "Compute Failed" reports would precede the one-line error
+        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                          silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
+            yield client
+        return
+    check_scheduler(scheduler)
+    try:
+        client = Client(scheduler, timeout=f"{CONNECT_SECONDS}s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise RcmKinError(f"cannot reach a Dask scheduler at {scheduler}: {exc}") from None
+    with client:
+        yield client
+
+
+def check_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
+    """Refuse ``address`` unless a Dask scheduler answers there within ``seconds``: connected, the
+    comm handshake done and its ``identity`` a scheduler's. (``distributed.Client`` waits for the
+    handshake without a timeout, and takes any bytes for a frame length.)"""
+    from distributed.comm import connect
+    from distributed.security import Security
+
+    async def identity():
+        comm = await connect(address, timeout=seconds, **Security().get_connection_args("client"))
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        answer = asyncio.run(asyncio.wait_for(identity(), seconds))
+    except (TimeoutError, asyncio.TimeoutError):
+        what = f"no Dask handshake within {seconds:g} s"
+    except (OSError, ValueError) as exc:
+        what = str(exc) or type(exc).__name__
+    except Exception as exc:        # whatever bytes a service that is not Dask's sent back
+        what = f"the service there does not speak Dask's protocol ({type(exc).__name__} reading its answer)"
+    else:
+        kind = answer.get("type") if isinstance(answer, dict) else None
+        if kind == "Scheduler":
+            return
+        what = f"the service there is {'a Dask ' + kind if kind else 'not a Dask scheduler'}"
+    raise RcmKinError(f"cannot reach a Dask scheduler at {address}: {what}")
+
+
+def batches_of(items: Sequence, batch_size: int) -> list[list]:
+    """``items`` cut in consecutive batches of ``batch_size`` (the last may be shorter)."""
+    if batch_size < 1:
+        raise RcmKinError(f"the batch size must be at least 1, got {batch_size}")
+    return [list(items[k:k + batch_size]) for k in range(0, len(items), batch_size)]
+
+
+def default_batch_size(items: int, workers: int) -> int:
+    """About :data:`BATCHES_PER_WORKER` batches per worker."""
+    return max(1, math.ceil(items / (BATCHES_PER_WORKER * max(workers, 1))))
+
+
+def map_batches(client, function: Callable, batches: list, progress: bool = True, desc: str = "batches",
+                on_batch: Callable[[int], None] | None = None, **shared) -> list:
+    """``function(batch, **shared)`` for every batch on ``client``'s cluster; the results in batch
+    order. A progress bar on stderr when ``progress``; ``on_batch(done)`` after each batch that
+    finishes (done = how many have)."""
+    from distributed import as_completed
+
+    futures = client.map(function, batches, pure=False, **shared)
+    with tqdm(total=len(futures), desc=desc, unit="batch", file=sys.stderr, disable=not progress) as bar:
+        for done, _ in enumerate(as_completed(futures), start=1):
+            bar.update()
+            if on_batch:
+                on_batch(done)
+    return client.gather(futures)

@@ -1,0 +1,333 @@
+"""Matplotlib figures (files only, no display): heat maps of the holding effort and the curves of
+thesis Figs 4.6/4.7 (roll effort versus roll, pitch effort versus pitch, each at several values
+of the other joint)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rcm_kin.dynamics.drive import DRIVEN
+from rcm_kin.errors import RcmKinError
+from rcm_kin.thesis import FIGURES
+
+# line styles that stay apart when curves coincide (e.g. roll -15 and +15 by symmetry)
+STYLES = ({"ls": "-", "marker": "o", "ms": 4}, {"ls": "-", "lw": 2.4, "alpha": 0.7},
+          {"ls": "--", "marker": "x", "ms": 6}, {"ls": ":", "marker": "^", "ms": 4}, {"ls": "-."})
+IMAGE_SAMPLES = 401        # poses per axis a heat map's image is drawn from at least (or all of them)
+CONTOUR_SAMPLES = 301      # poses per axis a heat map's contour lines are traced on at most
+
+
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend (files only, no display), imported when the first
+    figure is drawn, not when rcm_kin is: a command that draws nothing never pays for it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_figure(fig, path: str | Path) -> Path:
+    """Write the figure as a PNG (110 dpi; zlib level 3: a sixth larger than the default 6, the same
+    pixels, written in a fraction of the time) and free it."""
+    path = Path(path)
+    try:
+        fig.savefig(path, dpi=110, pil_kwargs={"compress_level": 3})
+    except (OSError, ValueError) as exc:
+        raise RcmKinError(f"cannot write the figure {path}: {exc}") from None
+    finally:
+        pyplot().close(fig)
+    return path
+
+
+def _still_spans(time: np.ndarray, angle: np.ndarray, least: float = 0.05) -> list[tuple[float, float]]:
+    """Intervals (s) over which ``angle`` does not change for at least ``least`` s."""
+    moving = np.r_[True, np.diff(angle) != 0.0, True]
+    edges = np.flatnonzero(moving)
+    return [(time[a], time[min(b, time.size - 1)]) for a, b in zip(edges[:-1], edges[1:])
+            if time[min(b, time.size - 1)] - time[a] >= least]
+
+
+def prediction_figure(time, measured, predicted, path: str | Path, title: str = "") -> Path:
+    """Measured and predicted angle (deg) over time (s); bands along the bottom and the top of the
+    axes mark where the measured angle rests and where the model is stuck."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(8, 3.6), constrained_layout=True)
+    bands = ((_still_spans(time, measured), "0.8", "measured at rest (lower band)", 0.0, 0.08),
+             (_still_spans(time, predicted), "#9fd49f", "model stuck (upper band)", 0.92, 1.0))
+    for spans, colour, label, low, high in bands:
+        for k, (a, b) in enumerate(spans):
+            ax.axvspan(a, b, ymin=low, ymax=high, color=colour, lw=0, label=label if k == 0 else None)
+    ax.plot(time, measured, "k", lw=1.4, label="measured")
+    ax.plot(time, predicted, color="tab:green", lw=1.2, ls="--", label="predicted (recorded PWM, no refit)")
+    ax.set(xlabel="time (s)", ylabel="angle (deg)", title=title)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    ax.grid(alpha=0.3)
+    return save_figure(fig, path)
+
+
+def effort_heatmaps(gmap, drive, path: str | Path, insertion_index: int = 0, image_samples: int = IMAGE_SAMPLES,
+                    contour_samples: int = CONTOUR_SAMPLES) -> Path:
+    """Holding PWM heat maps of roll and pitch over the roll x pitch grid at one insertion, each
+    colour bar with a second scale in motor volts (at rest the drive is linear, V = sign x
+    volts_per_pwm x PWM, from ``drive``, the map's :class:`DriveParameters`). A panel is about 450
+    pixels wide, so a finer grid is drawn from samples of it that look the same
+    (tests/plotting/test_heatmap_figure.py): the image from every k-th pose (:func:`image_stride`, at least
+    ``image_samples`` per axis, both ends kept), the contour lines (9 levels, matplotlib's choice
+    over the whole grid's range) traced on at most ``contour_samples`` evenly spread poses per axis
+    (:func:`spread_samples`); the colour scale is the whole grid's."""
+    plt = pyplot()
+    pwm = gmap.effort.pwm
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), layout="constrained")
+    extent = [*_span(gmap.roll_deg), *_span(gmap.pitch_deg)]
+    rows, cols = (spread_samples(n, contour_samples) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
+    pixels = tuple(slice(None, None, image_stride(n, image_samples)) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
+    for ax, joint in zip(axes, ("roll", "pitch")):
+        k = DRIVEN.index(joint)
+        data = pwm[:, :, insertion_index, k]
+        limit = np.abs(data).max()
+        im = ax.imshow(data[pixels], origin="lower", extent=extent, aspect="auto", cmap="coolwarm",
+                       vmin=-limit, vmax=limit)
+        if min(data.shape) >= 2:                 # a 1-point axis has no contours
+            ax.contour(gmap.roll_deg[cols], gmap.pitch_deg[rows], data[np.ix_(rows, cols)], colors="k",
+                       linewidths=0.5, levels=contour_levels(data, 9))
+        ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=f"{joint} holding PWM")
+        bar = fig.colorbar(im, ax=ax, label="PWM (counts)")
+        volts = drive[joint].pwm_sign * drive[joint].volts_per_pwm
+        bar.ax.secondary_yaxis("left", functions=(lambda p, v=volts: p * v, lambda u, v=volts: u / v)).set_ylabel(
+            "motor voltage (V)")
+    fig.suptitle(f"Holding effort at insertion {gmap.insertion[insertion_index] * 1e3:.0f} mm "
+                 "(PWM: hardware sign, positive decreases the angle)")
+    return save_figure(fig, path)
+
+
+def image_stride(n: int, least: int) -> int:
+    """The largest stride k that samples ``n`` poses as 0, k, 2k, ..., n - 1 (both ends, so the
+    image spans the whole grid) in at least ``least`` poses: 1 (every pose) when there is none."""
+    return max((k for k in range(1, n) if (n - 1) % k == 0 and (n - 1) // k + 1 >= least), default=1)
+
+
+def spread_samples(n: int, most: int) -> np.ndarray:
+    """Indices of at most ``most`` (>= 2) evenly spread samples of ``n``, the first and last
+    included: all of them when ``n <= most``."""
+    return np.arange(n) if n <= most else np.unique(np.linspace(0, n - 1, most).round().astype(int))
+
+
+def contour_levels(data: np.ndarray, n: int) -> np.ndarray:
+    """The levels ``ax.contour(..., levels=n)`` picks for ``data`` (matplotlib's rule: ``MaxNLocator(n
+    + 1)`` over the data's range, trimmed to one level beyond each end), so that contours traced
+    on samples of ``data`` keep the whole data's levels."""
+    from matplotlib import ticker
+
+    low, high = float(data.min()), float(data.max())
+    levels = ticker.MaxNLocator(n + 1, min_n_ticks=1).tick_values(low, high)
+    under, over = np.flatnonzero(levels < low), np.flatnonzero(levels > high)
+    first, last = (under[-1] if under.size else 0), (over[0] + 1 if over.size else levels.size)
+    return levels[first:last] if last - first >= 3 else levels
+
+
+def _span(values: np.ndarray) -> tuple[float, float]:
+    """Image extent of grid ``values``: first to last, or +-0.5 about a single value."""
+    return (values[0], values[-1]) if values.size > 1 else (values[0] - 0.5, values[0] + 0.5)
+
+
+def _style(k: int, n: int) -> dict:
+    """Line style ``k`` of :data:`STYLES`, markers on about 12 of ``n`` samples."""
+    return {**STYLES[k % len(STYLES)], "markevery": max(1, n // 12)}
+
+
+def _same_as(curve: np.ndarray, earlier: dict) -> str:
+    """`` (on <label>)`` when ``curve`` coincides with an earlier one (label -> curve), else ''."""
+    for label, other in earlier.items():
+        if np.allclose(curve, other, rtol=1e-6, atol=1e-9 * (1 + np.abs(other).max())):
+            return f" (on {label})"
+    return ""
+
+
+def thesis_trend_curves(gmap, path: str | Path, insertion_index: int = 0, others=(-15.0, 0.0, 15.0)) -> Path:
+    """Fig 4.6 (|roll voltage| vs roll) and Fig 4.7 (pitch voltage vs pitch), computed. Every
+    curve has its own line style; one lying on another says so in the legend."""
+    plt = pyplot()
+    e = gmap.effort
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    drawn_a, drawn_b = {}, {}
+    for k, other in enumerate(others):
+        i = int(np.argmin(np.abs(gmap.pitch_deg - other)))
+        y = np.abs(e.voltage[i, :, insertion_index, 0])
+        label = f"pitch {gmap.pitch_deg[i]:.0f} deg"
+        a.plot(gmap.roll_deg, y, label=label + _same_as(y, drawn_a), **_style(k, y.size))
+        drawn_a[label] = y
+        j = int(np.argmin(np.abs(gmap.roll_deg - other)))
+        y = e.voltage[:, j, insertion_index, 1]
+        label = f"roll {gmap.roll_deg[j]:.0f} deg"
+        b.plot(gmap.pitch_deg, y, label=label + _same_as(y, drawn_b), **_style(k, y.size))
+        drawn_b[label] = y
+    a.set(xlabel="roll (deg)", ylabel="|roll motor voltage| (V)",
+          title=f"roll holding voltage (cf. thesis {FIGURES['roll_holding']})")
+    b.set(xlabel="pitch (deg)", ylabel="pitch motor voltage (V)",
+          title=f"pitch holding voltage (cf. thesis {FIGURES['pitch_holding']})")
+    for ax in (a, b):
+        ax.grid(alpha=0.3)
+        ax.legend()
+    return save_figure(fig, path)
+
+
+def insertion_curves(gmap, path: str | Path) -> Path:
+    """Holding torque of roll and pitch and holding force of the insertion versus the insertion,
+    one curve per (roll, pitch) pose of the map: colour and marker by pitch, line style by roll;
+    the markers of the poses are staggered, so curves that coincide still show each pose."""
+    plt = pyplot()
+    e = gmap.effort
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.9), layout="constrained")
+    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, len(gmap.pitch_deg)))
+    quantities = (("roll holding torque", "N m"), ("pitch holding torque", "N m"), ("insertion holding force", "N"))
+    for k, (ax, (name, unit)) in enumerate(zip(axes, quantities)):
+        for i, roll in enumerate(gmap.roll_deg):
+            for j, pitch in enumerate(gmap.pitch_deg):
+                every = max(1, gmap.insertion.size // 8)
+                ax.plot(gmap.insertion * 1e3, e.tau[j, i, :, k], color=colours[j], ls=("-", "--", ":", "-.")[i % 4],
+                        marker="osD^v"[j % 5], ms=5, fillstyle="none" if i % 2 else "full", lw=1.6,
+                        markevery=((i * len(gmap.pitch_deg) + j) * every // 6 % every, every),
+                        label=f"roll {roll:.0f}, pitch {pitch:.0f} deg")
+        ax.set(xlabel="insertion (mm)", ylabel=f"{name} ({unit})", title=name)
+        ax.grid(alpha=0.3)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right center", fontsize=8)
+    fig.suptitle("Holding effort versus insertion (calibrated gravity): the insertion moves weight along the shaft, "
+                 "so roll torque changes only off roll 0,\npitch torque only off pitch 0, the insertion force "
+                 "(weight along the shaft) not at all", fontsize=10)
+    return save_figure(fig, path)
+
+
+def stability_maps(surveys: dict, path: str | Path) -> Path:
+    """Per survey (title -> StabilitySurvey): the 400 Hz firmware loop's slowest decay rate
+    ``-ln(spectral radius) / T`` (1/s; negative = unstable) over roll x pitch, all panels on one
+    symmetric colour scale (zero, the stability limit, in the middle), each with its range."""
+    plt = pyplot()
+    from rcm_kin.hardware import FIRMWARE_PERIOD
+
+    decays = {title: -np.log(s.spectral_radius) / FIRMWARE_PERIOD for title, s in surveys.items()}
+    limit = max(float(np.abs(d).max()) for d in decays.values()) or 1.0
+    fig, axes = plt.subplots(1, len(surveys), figsize=(5 * len(surveys), 4.3), layout="constrained", squeeze=False)
+    for ax, (title, s) in zip(axes[0], surveys.items()):
+        decay = decays[title]
+        extent = [s.roll_deg[0], s.roll_deg[-1], s.pitch_deg[0], s.pitch_deg[-1]]
+        im = ax.imshow(decay, origin="lower", extent=extent, aspect="auto", cmap="RdYlGn", vmin=-limit, vmax=limit)
+        if decay.min() < 0 < decay.max():
+            ax.contour(s.roll_deg, s.pitch_deg, decay, levels=[0.0], colors="k", linewidths=1.0)
+        verdict = ("unstable everywhere" if decay.max() <= 0 else "unstable in part" if decay.min() <= 0
+                   else "stable, barely (under 1 % of the scale)" if decay.min() < 0.01 * limit else "stable")
+        ax.text(0.03, 0.04, f"decay {decay.min():+.3g} to {decay.max():+.3g} 1/s\n{verdict}",
+                transform=ax.transAxes, fontsize=8, bbox={"facecolor": "white", "alpha": 0.85, "lw": 0})
+        ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=title)
+    fig.colorbar(im, ax=axes[0].tolist(), label="slowest decay rate, 1/s (< 0 unstable; one scale for all)")
+    return save_figure(fig, path)
+
+
+def tracking_figure(result, path: str | Path, title: str = "") -> Path:
+    """Thesis Figs 5.2-5.5 and 5.8-5.9: reference and measured angle per axis (top) and the
+    tracking error (bottom), with the PWM sent on a second axis."""
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(11, 6.4), sharex=True, layout="constrained")
+    for i, axis in enumerate(("roll", "pitch")):
+        top, bottom = axes[0, i], axes[1, i]
+        top.plot(result.time, result.reference[:, i], "k--", lw=1.2, label="reference")
+        top.plot(result.time, result.measured[:, i], lw=1.2, label=f"measured ({result.controller})")
+        top.set(ylabel=f"{axis} (deg)", title=f"{title} {axis}".strip())
+        bottom.plot(result.time, result.error[:, i], color="tab:red", lw=1.0, label="error")
+        bottom.set(xlabel="time (s)", ylabel="error (deg)")
+        pwm = bottom.twinx()
+        pwm.plot(result.time, result.pwm[:, i], color="tab:gray", lw=0.6, alpha=0.6, label="PWM sent (right axis)")
+        pwm.set_ylabel("PWM (counts)", color="tab:gray")
+        for ax in (top, bottom):
+            ax.grid(alpha=0.3)
+    handles = [h for ax in (axes[0, 0], axes[1, 0], pwm) for h in ax.get_legend_handles_labels()[0]]
+    fig.legend(handles=handles, loc="outside upper center", ncol=len(handles), fontsize=8)   # off the curves
+    return save_figure(fig, path)
+
+
+def error_comparison_figure(results: list, path: str | Path, title: str = "") -> Path:
+    """Thesis Figs 5.6/5.7 and 5.10/5.11: the tracking error of several controllers per axis."""
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 3.6), constrained_layout=True)
+    for i, (ax, axis) in enumerate(zip(axes, ("roll", "pitch"))):
+        for r in results:
+            ax.plot(r.time, r.error[:, i], lw=1.0, label=r.controller)
+        ax.set(xlabel="time (s)", ylabel=f"{axis} error (deg)", title=f"{title} {axis}".strip())
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+    return save_figure(fig, path)
+
+
+GREYBOX_STYLES = {"measured": {"color": "k", "lw": 1.5},
+                  "starting": {"color": "tab:blue", "lw": 4.5, "alpha": 0.35},
+                  "fitted": {"color": "tab:orange", "lw": 1.6, "ls": "--"},
+                  "own_coulomb": {"color": "tab:green", "lw": 1.6, "ls": ":"}}
+GREYBOX_LABELS = {"measured": "measured", "starting": "starting set", "fitted": "fitted set (median Coulomb)",
+                  "own_coulomb": "fitted set, each log's own Coulomb"}
+
+
+def _measured_limits(measured: np.ndarray) -> tuple[float, float]:
+    """y-limits from the measured response (and zero), with room above and below."""
+    low, high = min(float(np.min(measured)), 0.0), max(float(np.max(measured)), 0.0)
+    span = (high - low) or 1.0
+    return low - 0.15 * span, high + 0.25 * span
+
+
+def _note_clipped(ax, response: dict, limits: tuple[float, float]) -> None:
+    """Say in the panel which simulated curves leave the axes, and how far they go."""
+    notes = []
+    for key in ("starting", "fitted", "own_coulomb"):
+        y = np.asarray(response[key])
+        if y.max() > limits[1] or y.min() < limits[0]:
+            far = y.max() if y.max() > limits[1] else y.min()
+            notes.append(f"{GREYBOX_LABELS[key].split(' (')[0]} off scale (to {far:+.3g})")
+    if notes:
+        ax.text(0.98, 0.03, "\n".join(notes), transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
+                bbox={"facecolor": "white", "alpha": 0.85, "lw": 0})
+
+
+def greybox_figure(fit, path: str | Path) -> Path:
+    """Measured step responses beside the physics simulated with the starting and the fitted
+    parameters (and each log's own Coulomb friction), one panel per log. The y-axis is the
+    measured response's; a simulated curve beyond it is clipped and the panel says so. The
+    starting set is a broad pale band under the fitted set's dashes, so both show where they agree."""
+    plt = pyplot()
+    n = len(fit.logs)
+    cols = min(n, 3)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.4 * cols, 3.3 * rows + 0.5), layout="constrained", squeeze=False)
+    for ax, name, r, before, after, own in zip(axes.flat, fit.logs, fit.responses, fit.fit_before, fit.fit_after,
+                                               fit.fit_per_log_friction):
+        for key in ("starting", "fitted", "own_coulomb", "measured"):
+            ax.plot(r["time"], r[key], label=GREYBOX_LABELS[key], **GREYBOX_STYLES[key])
+        limits = _measured_limits(r["measured"])
+        ax.set_ylim(*limits)
+        _note_clipped(ax, r, limits)
+        ax.set(title=f"{name.replace('.csv', '')}\nfit: starting {before:.0f} %, fitted {after:.0f} %, "
+                     f"own Coulomb {own:.0f} %", xlabel="time (s)", ylabel=f"{fit.joint} change (deg)")
+        ax.title.set_fontsize(8)
+        ax.grid(alpha=0.3)
+    for ax in axes.flat[n:]:
+        ax.axis("off")
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncol=4, fontsize=8)
+    return save_figure(fig, path)
+
+
+def barrier_figure(runs: dict, path: str | Path) -> Path:
+    """Barrier value along each safety scenario (``{scenario: {filter: SafetyRun}}``): B <= 0 is
+    safe; the unfiltered run shows where the nominal controller would have gone."""
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(runs), figsize=(4.2 * len(runs), 3.4), constrained_layout=True, squeeze=False)
+    for ax, (scenario, by_filter) in zip(axes[0], runs.items()):
+        for name, run in by_filter.items():
+            ax.plot(run.time, run.barrier, lw=1.0, label=name, ls=":" if name == "none" else "-")
+        ax.axhline(0.0, color="k", lw=0.8)
+        ax.set(title=scenario, xlabel="time (s)", ylabel="B (> 0 unsafe)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    return save_figure(fig, path)
