@@ -10,6 +10,7 @@ import numpy as np
 
 from rcm_kin.dynamics.drive import DRIVEN
 from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import FIRMWARE_PERIOD
 from rcm_kin.thesis import FIGURES
 
 # line styles that stay apart when curves coincide (e.g. roll -15 and +15 by symmetry)
@@ -207,7 +208,6 @@ def stability_maps(surveys: dict, path: str | Path) -> Path:
     ``-ln(spectral radius) / T`` (1/s; negative = unstable) over roll x pitch, all panels on one
     symmetric colour scale (zero, the stability limit, in the middle), each with its range."""
     plt = pyplot()
-    from rcm_kin.hardware import FIRMWARE_PERIOD
 
     decays = {title: -np.log(s.spectral_radius) / FIRMWARE_PERIOD for title, s in surveys.items()}
     limit = max(float(np.abs(d).max()) for d in decays.values()) or 1.0

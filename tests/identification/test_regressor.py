@@ -56,7 +56,7 @@ def test_armature_is_set_aside(psm):
     """On a tree with rotor armature, RNEA = Y theta + S^T diag(armature) S a (and Y theta alone is short)."""
     tree = pin.Model(psm.tree)
     tree.armature = np.linspace(0.01, 0.1, tree.nv)
-    robot = dataclasses.replace(psm, tree=tree, tree_data=tree.createData())
+    robot = dataclasses.replace(psm, tree=tree)
     theta = reg.dynamic_parameters(robot)
     for q, v, a in zip(*_states(robot, 5, 1)):
         rnea = _rnea_through_closure(robot, q, v, a)

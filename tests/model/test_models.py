@@ -14,7 +14,7 @@ import yourdfpy
 
 from rcm_kin import RcmKinError, load_robot, robot_names
 from rcm_kin.model.reduced import tree_configuration
-from rcm_kin.model import urdf_dir
+from rcm_kin.model.loading import urdf_dir
 
 REPO_URDF = Path(__file__).resolve().parents[2] / "urdf"
 

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rcm_kin.dynamics.state_space import drive_constants
 from rcm_kin.errors import RcmKinError
 
 if TYPE_CHECKING:
@@ -65,8 +66,6 @@ def friction_compensation(drive: DriveParameters | DriveConstants,
     """The compensation of the smooth model's sliding Coulomb friction: per axis (roll, pitch)
     ``F_c / |k_u|`` counts with ``F_c`` = ``coulomb`` (N m) and ``k_u`` = ``input_gain`` (N m per
     count) of the drive parameters or of a model's :class:`DriveConstants` (DRIVEN order)."""
-    from rcm_kin.dynamics.drive import DriveParameters
-    from rcm_kin.dynamics.state_space import drive_constants
 
     constants = drive_constants(drive) if isinstance(drive, DriveParameters) else drive
     if np.any(constants.input_gain[:2] >= 0):

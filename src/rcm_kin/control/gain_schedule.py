@@ -22,7 +22,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rcm_kin.control.friction_compensation import DEFAULT_RAMP_DEG_S, FrictionCompensation, friction_compensation
+from rcm_kin.control.friction_compensation import (
+    DEFAULT_RAMP_DEG_S,
+    FrictionCompensation,
+    friction_compensation,
+)
+from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.weights import Weights
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION, INSERTION_KP
@@ -47,7 +52,7 @@ def axis_model(A: np.ndarray, B: np.ndarray, axis: int) -> tuple[np.ndarray, np.
 def lqr_axis(a: np.ndarray, b: np.ndarray, Q: np.ndarray, R: np.ndarray, integral: bool = False) -> np.ndarray:
     """State-feedback row ``K`` of ``u = -K x`` (python-control ``lqr``) for one axis; with
     ``integral`` the state is augmented by the integral of the first state (LQI)."""
-    import control   # python-control costs ~120 MB to import: only where gains are designed
+    import control  # python-control costs ~120 MB to import: only where gains are designed
 
     extra = {"integral_action": np.array([[1.0, 0.0]])} if integral else {}
     K, _, _ = control.lqr(a, b, Q, R, **extra)
@@ -148,7 +153,6 @@ def schedule_gains(model: DrivenDynamics, roll_deg, pitch_deg, insertion: float 
     """Design the gain tables on a roll x pitch grid (degrees) at one insertion (m). The schedule
     also carries the friction-compensation feedforward of the model's sliding Coulomb friction
     (the Coulomb level the design leaves out), ramped over ``friction_ramp_deg_s`` (deg/s)."""
-    from rcm_kin.control.linearization import linearize_grid   # CasADi and SciPy: not at CLI start-up
 
     if model.coulomb:
         raise RcmKinError("design on the model without Coulomb friction: driven_dynamics(..., coulomb=False)")

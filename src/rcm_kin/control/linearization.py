@@ -19,13 +19,12 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 import pinocchio as pin
-from scipy.linalg import expm
 
-from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.dynamics.drive import DRIVEN, DRIVEN_UNIT
-from rcm_kin.model.gravity import offset_moments
 from rcm_kin.dynamics.state_space import DrivenDynamics, holding_pwm
 from rcm_kin.errors import RcmKinError
+from rcm_kin.model.gravity import offset_moments
+from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.symbolic.compiled import compiled, map_points
 
 if TYPE_CHECKING:
@@ -55,7 +54,7 @@ class Linearization:
         """The model as a python-control ``StateSpace`` in the deviations from ``(x0, u0)``, with
         labelled signals: states ``roll [rad]`` .. ``insertion rate [m/s]``, inputs
         ``roll PWM [counts]`` .., outputs the joint positions ``roll [rad]`` .. ``insertion [m]``."""
-        import control   # python-control costs ~120 MB and a second to import: only when asked for
+        import control  # python-control costs ~120 MB and a second to import: only when asked for
 
         positions = [f"{j} [{DRIVEN_UNIT[j]}]" for j in DRIVEN]
         rates = [f"{j} rate [{DRIVEN_UNIT[j]}/s]" for j in DRIVEN]
@@ -71,6 +70,10 @@ def zero_order_hold(A: np.ndarray, B: np.ndarray, period: float) -> tuple[np.nda
     n, m = B.shape
     block = np.zeros((n + m, n + m))
     block[:n, :n], block[:n, n:] = A, B
+    from scipy.linalg import (
+        expm,  # SciPy is imported by the designs that discretise, not by the CLI
+    )
+
     E = expm(block * period)
     return E[:n, :n], E[:n, n:]
 

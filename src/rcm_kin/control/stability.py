@@ -13,7 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rcm_kin.control.gain_schedule import GainSchedule, closed_loop_matrix, scheduled_gains
+from rcm_kin.control.gain_schedule import (
+    GainSchedule,
+    closed_loop_matrix,
+    scheduled_gains,
+)
 from rcm_kin.control.linearization import linearize_grid, zero_order_hold
 from rcm_kin.dynamics.state_space import DrivenDynamics
 from rcm_kin.hardware import FIRMWARE_PERIOD, INSERTION_KP, ROLL_FILTER

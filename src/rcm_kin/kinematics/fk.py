@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+
 import numpy as np
 import pinocchio as pin
 
 from rcm_kin.model.constrained import closure_residual
 from rcm_kin.model.reduced import tree_configuration
-from rcm_kin.model.robot import Robot, RobotData
+from rcm_kin.model.robot import Robot
 
 
 @dataclass(frozen=True)
@@ -18,20 +19,26 @@ class ForwardKinematics:
     closure_residual: float       # largest loop-closure error of the configuration used (m)
 
 
-def frame_placement(robot: Robot, q: np.ndarray, frame: str) -> pin.SE3:
-    """Placement of one frame in the base frame at actuated ``q`` (reduced model)."""
+def frame_placement(robot: Robot, q: np.ndarray, frame: str, data: RobotData | None = None) -> pin.SE3:
+    """Placement of one frame in the base frame at actuated ``q`` (reduced model); ``data``: the
+    caller's workspace (:meth:`Robot.create_data`), default this thread's own."""
     fid = robot.frame_id(frame)
-    pin.forwardKinematics(robot.reduced, robot.reduced_data, robot.to_reduced(q))
-    return pin.updateFramePlacement(robot.reduced, robot.reduced_data, fid).copy()
+    reduced_data = (data or robot.scratch).reduced
+    pin.forwardKinematics(robot.reduced, reduced_data, robot.to_reduced(q))
+    return pin.updateFramePlacement(robot.reduced, reduced_data, fid).copy()
 
 
-def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None) -> ForwardKinematics:
-    """Frames of interest (default: the sidecar's ``frames``) at actuated ``q``."""
+def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None,
+                       data: RobotData | None = None) -> ForwardKinematics:
+    """Frames of interest (default: the sidecar's ``frames``) at actuated ``q`` (rad, m).
+
+    ``data``: the caller's workspace (:meth:`Robot.create_data`); default this thread's own."""
     q = robot.check_q(q)
+    data = data or robot.scratch
     frames = robot.description.frames if frames is None else frames
     ids = [robot.frame_id(name) for name in frames]
-    pin.forwardKinematics(robot.reduced, robot.reduced_data, robot.to_reduced(q))
-    placements = {name: pin.updateFramePlacement(robot.reduced, robot.reduced_data, fid).copy()
+    pin.forwardKinematics(robot.reduced, data.reduced, robot.to_reduced(q))
+    placements = {name: pin.updateFramePlacement(robot.reduced, data.reduced, fid).copy()
                   for name, fid in zip(frames, ids)}
-    residual = closure_residual(robot, tree_configuration(robot, q))
+    residual = closure_residual(robot, tree_configuration(robot, q), data)
     return ForwardKinematics(q, placements, float(np.max(np.abs(residual))) if residual.size else 0.0)

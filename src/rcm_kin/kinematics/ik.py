@@ -10,6 +10,8 @@ import pinocchio as pin
 
 from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement
+from rcm_kin.kinematics.numeric_ik import solve_ik
+from rcm_kin.kinematics.psm_ik import ARM, WRIST, shaft_tip_ik, tool_pose_ik
 
 MTM_ARM = ("j1", "j2", "j3")
 
@@ -32,18 +34,15 @@ def inverse_kinematics(robot, position, rpy=None) -> IKSolution:
     position = np.asarray(position, dtype=float)
     orientation_error = None
     if robot.name == "psm" and rpy is None:
-        from rcm_kin.kinematics.psm_ik import ARM, shaft_tip_ik
         frame, joints = "shaft_tip", ARM
         q_full = robot.check_q(shaft_tip_ik(robot, position), allow_short=True)
     elif robot.name == "psm":
-        from rcm_kin.kinematics.psm_ik import ARM, WRIST, tool_pose_ik
         frame, joints = "tool_tip", ARM + WRIST
         result = tool_pose_ik(robot, position, pin.rpy.rpyToMatrix(*np.asarray(rpy, dtype=float)))
         q_full, orientation_error = result.q, result.orientation_error
     elif robot.name == "mtm":
         if rpy is not None:
             raise RcmKinError("--rpy is for the PSM tool; the MTM IK places its wrist centre")
-        from rcm_kin.kinematics.numeric_ik import solve_ik
         frame, joints = "wrist_center", MTM_ARM
         q_full = solve_ik(robot, frame, position, joints=joints).q
     else:

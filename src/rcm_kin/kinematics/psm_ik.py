@@ -17,6 +17,7 @@ import pinocchio as pin
 
 from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement
+from rcm_kin.kinematics.numeric_ik import solve_ik
 from rcm_kin.model.joints import joint_axes_world
 
 if TYPE_CHECKING:
@@ -211,7 +212,6 @@ def tool_pose_ik(robot: Robot, position, rotation: np.ndarray, jaw: float = 0.0)
     Closed-form start (shaft tip at the target, wrist orientation in closed form), then damped
     least squares over the six arm and wrist joints. Returns a numeric_ik.IKResult.
     """
-    from rcm_kin.kinematics.numeric_ik import solve_ik
 
     q0 = np.zeros(robot.nq)
     q0[robot.actuated.index("jaw")] = jaw

@@ -17,11 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.model import constrained, reduced
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.kinematics.numeric_ik import solve_ik
 from rcm_kin.kinematics.psm_ik import rcm_geometry, shaft_tip_ik
-from rcm_kin.model import load_robot
+from rcm_kin.model import constrained, load_robot, reduced
 
 
 @dataclass(frozen=True)

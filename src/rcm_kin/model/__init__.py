@@ -12,9 +12,14 @@ closed chain (constrained and reduced) and gravity. It names no particular robot
 
 from rcm_kin.model.gravity import gravity_batch, gravity_torque
 from rcm_kin.model.joints import joint_axes_world, joint_table
-from rcm_kin.model.loading import GRAVITY, build_robot, load_robot, robot_names, urdf_dir
+from rcm_kin.model.loading import (
+           GRAVITY,
+           build_robot,
+           load_robot,
+           robot_names,
+)
 from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.model.robot import JointRow, Robot, RobotData
 
 __all__ = ["GRAVITY", "JointRow", "Robot", "RobotData", "build_robot", "gravity_batch", "gravity_torque",
-           "joint_axes_world", "joint_table", "load_robot", "robot_names", "tree_configuration", "urdf_dir"]
+           "joint_axes_world", "joint_table", "load_robot", "robot_names", "tree_configuration"]

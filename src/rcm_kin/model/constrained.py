@@ -14,16 +14,15 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.model.description import LoopClosure
 from rcm_kin.errors import RcmKinError
-from rcm_kin.model.robot import Robot
+from rcm_kin.model.description import LoopClosure
+from rcm_kin.model.robot import Robot, RobotData
 
 
 @dataclass(frozen=True)
 class LoopConstraint:
     loop: LoopClosure
-    model: pin.PointAnchorConstraintModel
-    data: pin.PointAnchorConstraintData
+    model: pin.PointAnchorConstraintModel   # its data lives in the caller's RobotData.constraints
     rows: np.ndarray   # (k, 3): independent directions of the residual, in frame A
 
 
@@ -57,28 +56,31 @@ def build_constraint_models(tree: pin.Model, loops: tuple[LoopClosure, ...]) -> 
             placements.append((frame.parentJoint, frame.placement * pin.SE3(np.eye(3), point)))
         (joint_a, placement_a), (joint_b, placement_b) = placements
         model = pin.PointAnchorConstraintModel(tree, joint_a, placement_a, joint_b, placement_b)
-        constraints.append(LoopConstraint(loop, model, model.createData(), _independent_rows(loop.plane_normal)))
+        constraints.append(LoopConstraint(loop, model, _independent_rows(loop.plane_normal)))
     return constraints
 
 
-def closure_residual(robot: Robot, q_tree: np.ndarray) -> np.ndarray:
-    """Stacked independent loop-closure errors at ``q_tree`` (m); empty for a serial robot."""
-    pin.forwardKinematics(robot.tree, robot.tree_data, q_tree)
+def closure_residual(robot: Robot, q_tree: np.ndarray, data: RobotData | None = None) -> np.ndarray:
+    """Stacked independent loop-closure errors at ``q_tree`` (m); empty for a serial robot.
+    ``data``: the caller's workspace, default this thread's own."""
+    data = data or robot.scratch
+    pin.forwardKinematics(robot.tree, data.tree, q_tree)
     parts = []
-    for c in robot.constraints:
-        c.model.calc(robot.tree, robot.tree_data, c.data)
-        parts.append(c.rows @ c.data.constraint_position_error)
+    for c, c_data in zip(robot.constraints, data.constraints):
+        c.model.calc(robot.tree, data.tree, c_data)
+        parts.append(c.rows @ c_data.constraint_position_error)
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
-def constraint_jacobian(robot: Robot, q_tree: np.ndarray) -> np.ndarray:
+def constraint_jacobian(robot: Robot, q_tree: np.ndarray, data: RobotData | None = None) -> np.ndarray:
     """``d closure_residual / d q_tree``: (independent rows) x (tree nv)."""
-    model, data = robot.tree, robot.tree_data
-    pin.computeJointJacobians(model, data, q_tree)
+    workspace = data or robot.scratch
+    model, tree_data = robot.tree, workspace.tree
+    pin.computeJointJacobians(model, tree_data, q_tree)
     blocks = []
-    for c in robot.constraints:
-        c.model.calc(model, data, c.data)
-        blocks.append(c.rows @ c.model.jacobian(model, data, c.data))
+    for c, c_data in zip(robot.constraints, workspace.constraints):
+        c.model.calc(model, tree_data, c_data)
+        blocks.append(c.rows @ c.model.jacobian(model, tree_data, c_data))
     return np.vstack(blocks) if blocks else np.zeros((0, model.nv))
 
 

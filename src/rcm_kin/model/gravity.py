@@ -18,24 +18,27 @@ import numpy as np
 import pinocchio as pin
 from tqdm import tqdm
 
-from rcm_kin.model import constrained
-from rcm_kin.model.reduced import reduced_gravity, relation_jacobian, tree_configuration
 from rcm_kin.errors import RcmKinError
+from rcm_kin.model import constrained
+from rcm_kin.model.reduced import relation_jacobian, tree_configuration
+from rcm_kin.model.robot import Robot, RobotData
 from rcm_kin.symbolic.tree import joint_axis
-from rcm_kin.model.robot import Robot
 
 
-def gravity_torque(robot: Robot, q, method: str = "reduced") -> np.ndarray:
+def gravity_torque(robot: Robot, q, method: str = "reduced", data: RobotData | None = None) -> np.ndarray:
     """Holding torques of the actuated joints at actuated ``q`` (N m, N), actuated order.
 
-    ``method``: ``"reduced"`` (mimic model) or ``"constrained"`` (loop solve + projection).
+    ``method``: ``"reduced"`` (mimic model) or ``"constrained"`` (loop solve + projection);
+    ``data``: the caller's workspace (:meth:`Robot.create_data`), default this thread's own.
     """
     q = robot.check_q(q)
+    data = data or robot.scratch
     if method == "reduced":
-        return reduced_gravity(robot, q)
+        g = pin.computeGeneralizedGravity(robot.reduced, data.reduced, robot.to_reduced(q))
+        return robot.from_reduced(g).copy()
     if method == "constrained":
         q_tree = constrained.solve_loops(robot, q)
-        g_tree = pin.computeGeneralizedGravity(robot.tree, robot.tree_data, q_tree)
+        g_tree = pin.computeGeneralizedGravity(robot.tree, data.tree, q_tree)
         return constrained.project_torques(robot, q_tree, g_tree).tau
     raise RcmKinError(f"unknown gravity method '{method}': use 'reduced' or 'constrained'")
 

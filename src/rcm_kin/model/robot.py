@@ -25,10 +25,12 @@ from rcm_kin.model.description import RobotDescription
 
 @dataclass(frozen=True)
 class RobotData:
-    """Pinocchio scratch workspaces of one robot's open-tree and reduced models."""
+    """Pinocchio scratch workspaces of one robot: the open tree's, the reduced model's and one per
+    loop constraint."""
 
     tree: pin.Data
     reduced: pin.Data
+    constraints: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -58,11 +60,12 @@ class Robot:
     reduced_q_actuated: np.ndarray  # index in the reduced q of each actuated joint
     lower: np.ndarray               # actuated joint limits (rad or m)
     upper: np.ndarray
-    _threads: threading.local = field(default_factory=threading.local, repr=False)
+    _threads: threading.local = field(default_factory=threading.local, init=False, repr=False)  # per thread: RobotData
 
     def create_data(self) -> RobotData:
         """New scratch workspaces for the caller alone (Pinocchio's ``model.createData()``)."""
-        return RobotData(self.tree.createData(), self.reduced.createData())
+        return RobotData(self.tree.createData(), self.reduced.createData(),
+                         tuple(c.model.createData() for c in self.constraints))
 
     @property
     def scratch(self) -> RobotData:

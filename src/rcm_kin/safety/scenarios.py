@@ -27,8 +27,26 @@ import numpy as np
 
 from rcm_kin.control.linearization import zero_order_hold
 from rcm_kin.errors import RcmKinError
+from rcm_kin.kinematics.fk import frame_placement
+from rcm_kin.kinematics.psm_ik import shaft_tip_ik
+from rcm_kin.kinematics.teleop import default_teleop_map, psm_targets
+from rcm_kin.model import load_robot
 from rcm_kin.safety.barriers import Barrier, Ellipsoid, MovingPlane, Slab, band_width
-from rcm_kin.safety.cbf import barrier_terms, blended_control, cbf_qp_problem, solve_cbf_qp
+from rcm_kin.safety.cbf import (
+    barrier_terms,
+    blended_control,
+    cbf_qp_problem,
+    solve_cbf_qp,
+)
+from rcm_kin.simulation.controllers import make_controller
+from rcm_kin.simulation.experiments import (
+    closed_loop,
+    psm_plant_and_schedule,
+    start_hold,
+)
+from rcm_kin.simulation.firmware import FirmwareSettings
+from rcm_kin.simulation.loop import si_units
+from rcm_kin.simulation.references import Reference, load_mtm_trajectory
 
 SCENARIOS = ("ellipsoid", "slide", "heart", "psm")
 FILTERS = ("blend", "qp", "none")
@@ -177,15 +195,6 @@ def psm_run(filter: str = "blend", trajectory=None, controller: str = "scheduled
     measured on the true ellipsoid at the tip the simulated robot reaches."""
     from scipy.interpolate import CubicSpline
 
-    from rcm_kin.kinematics.fk import frame_placement
-    from rcm_kin.kinematics.psm_ik import shaft_tip_ik
-    from rcm_kin.kinematics.teleop import default_teleop_map, psm_targets
-    from rcm_kin.model import load_robot
-    from rcm_kin.simulation.controllers import make_controller
-    from rcm_kin.simulation.experiments import closed_loop, psm_plant_and_schedule, start_hold
-    from rcm_kin.simulation.firmware import FirmwareSettings
-    from rcm_kin.simulation.loop import si_units
-    from rcm_kin.simulation.references import Reference, load_mtm_trajectory
 
     psm = load_robot("psm")
     settings = FirmwareSettings()

@@ -23,9 +23,10 @@ import numpy as np
 from scipy.optimize import lsq_linear
 
 from rcm_kin.dynamics.drive import DriveParameters
-from rcm_kin.model.gravity import gravity_batch, point_mass_gravity_batch
 from rcm_kin.errors import RcmKinError
-from rcm_kin.hardware import HOME_INSERTION
+from rcm_kin.hardware import DPM_COUNTERWEIGHT, HOME_INSERTION, MAIN_COUNTERWEIGHT
+from rcm_kin.model import load_robot
+from rcm_kin.model.gravity import gravity_batch, point_mass_gravity_batch
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
@@ -119,8 +120,6 @@ def osmdv_designs(drive: DriveParameters, points: int = 13) -> OsmdvDesigns:
     the home insertion, ``points`` per axis. Once holding the DPM counterweight where osMDV
     built it and weighing the roll alone (what osMDV balanced), once designing both for roll
     and pitch."""
-    from rcm_kin.hardware import DPM_COUNTERWEIGHT, MAIN_COUNTERWEIGHT
-    from rcm_kin.model import load_robot
 
     without = load_robot("psm", counterweights=False)
     cad = DriveParameters(drive.joints, {})

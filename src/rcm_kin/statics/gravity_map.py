@@ -13,21 +13,32 @@ import functools
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 import casadi as ca
 import numpy as np
 from tqdm import tqdm
 
 from rcm_kin.csv_table import write_csv_blocks
-from rcm_kin.dynamics.drive import DRIVEN, DriveEffort, DriveParameters, drive_effort, load_drive_parameters
-from rcm_kin.model.gravity import gravity_batch
+from rcm_kin.dynamics.drive import (
+    DRIVEN,
+    DriveEffort,
+    DriveParameters,
+    drive_effort,
+    load_drive_parameters,
+)
+from rcm_kin.dynamics.state_space import driven_gravity_function
 from rcm_kin.errors import RcmKinError, WorkLimitError
+from rcm_kin.hardware import HOME_INSERTION
+from rcm_kin.model.gravity import gravity_batch
+from rcm_kin.plotting import effort_heatmaps, insertion_curves, thesis_trend_curves
+from rcm_kin.symbolic.compiled import compiled, map_points
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
 
 
+DEFAULT_GRID_DEG = np.linspace(-30.0, 30.0, 61)   # roll and pitch, deg (the CLI's default grid)
 MAX_POSES = 1001 * 1001   # poses of one map (the largest benchmarked: bench_gravity.py)
 BYTES_PER_POSE = 140      # peak memory per pose, measured: 1001 x 1001 poses took 135 MB more than 5 x 5
 
@@ -43,10 +54,58 @@ def check_map_size(poses: int) -> None:
 
 @dataclass(frozen=True)
 class GravityMap:
-    roll_deg: np.ndarray        # (R,)
-    pitch_deg: np.ndarray       # (P,)
-    insertion: np.ndarray       # (I,) m
-    effort: DriveEffort         # arrays of shape (P, R, I, 3): pitch rows, roll columns
+    """Holding effort of the driven joints over a roll x pitch x insertion grid: a labelled result.
+
+    Every array of :attr:`effort` (``tau`` N m or N, ``motor_torque`` N m, ``current`` A, ``voltage`` V,
+    ``pwm`` counts with the hardware sign, ``saturated``) has the axes :attr:`dims` = ``(pitch, roll, insertion, joint)``:
+    pitch rows, roll columns. Read one pose by name with :meth:`sel` rather than by position;
+    :meth:`write` writes the table (CSV or .npz)."""
+
+    roll_deg: np.ndarray        # (R,) grid values, deg
+    pitch_deg: np.ndarray       # (P,) grid values, deg
+    insertion: np.ndarray       # (I,) grid values, m
+    effort: DriveEffort         # arrays of shape (P, R, I, 3)
+
+    dims: ClassVar[tuple[str, ...]] = ("pitch", "roll", "insertion", "joint")
+    units: ClassVar[dict[str, str]] = {"roll": "deg", "pitch": "deg", "insertion": "m", "tau": "N m (insertion: N)",
+                                       "voltage": "V", "pwm": "counts (hardware sign)"}
+
+    @property
+    def coords(self) -> dict[str, np.ndarray | tuple[str, ...]]:
+        """The grid values along each axis of :attr:`dims`."""
+        return {"pitch": self.pitch_deg, "roll": self.roll_deg, "insertion": self.insertion, "joint": DRIVEN}
+
+    def index(self, roll: float, pitch: float, insertion: float | None = None) -> tuple[int, int, int]:
+        """Array index ``(pitch, roll, insertion)`` of a grid pose (deg, deg, m); ``insertion`` may be
+        left out when the map has one. A value that is not on the grid is an error naming the nearest."""
+        if insertion is None:
+            if self.insertion.size != 1:
+                raise RcmKinError(f"the map has {self.insertion.size} insertions: give insertion (m)")
+            insertion = float(self.insertion[0])
+        return tuple(_on_grid(values, x, name, self.units[name])
+                     for name, values, x in (("pitch", self.pitch_deg, pitch), ("roll", self.roll_deg, roll),
+                                             ("insertion", self.insertion, insertion)))
+
+    def sel(self, roll: float, pitch: float, insertion: float | None = None) -> DriveEffort:
+        """The holding effort at one grid pose, by name (deg, deg, m): arrays over the joints
+        (:data:`DRIVEN`)."""
+        at = self.index(roll, pitch, insertion)
+        return DriveEffort(**{f.name: getattr(self.effort, f.name)[at] for f in fields(DriveEffort)})
+
+    def write(self, path: str | Path) -> Path:
+        """The map's table, one row per pose, as CSV (``.csv``) or NumPy (``.npz``) by the suffix."""
+        suffix = Path(path).suffix.lstrip(".")
+        if suffix not in TABLE_WRITERS:
+            raise RcmKinError(f"a map's table is written as {' or '.join('.' + k for k in TABLE_WRITERS)}, "
+                              f"not {Path(path).name}")
+        return TABLE_WRITERS[suffix](self, path)
+
+
+def _on_grid(values: np.ndarray, x: float, name: str, unit: str) -> int:
+    k = int(np.argmin(np.abs(values - x)))
+    if not abs(values[k] - x) <= 1e-9 * max(1.0, abs(x)):
+        raise RcmKinError(f"{name} {x:g} {unit} is not on the map's grid (nearest {values[k]:g} {unit})")
+    return k
 
 
 @dataclass(frozen=True)
@@ -81,9 +140,15 @@ def parse_range(text: str, what: str) -> tuple[float, float, int]:
     return lo, hi, n
 
 
-def gravity_map(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg, insertion,
-                progress: bool = False) -> GravityMap:
-    """Holding effort over the grid roll x pitch x insertion (degrees, degrees, metres)."""
+def gravity_map(robot: Robot, drive: DriveParameters | None = None, roll_deg=DEFAULT_GRID_DEG,
+                pitch_deg=DEFAULT_GRID_DEG, insertion=HOME_INSERTION, progress: bool = False) -> GravityMap:
+    """Holding effort over the grid roll x pitch x insertion (degrees, degrees, metres), a
+    :class:`GravityMap` with named axes. ``drive``: the drive parameters (default: the shipped,
+    calibrated set, :func:`load_drive_parameters`)."""
+    if drive is None:
+        drive = load_drive_parameters()
+    elif not isinstance(drive, DriveParameters):
+        raise RcmKinError(f"drive must be DriveParameters (load_drive_parameters(path)), got {type(drive).__name__}")
     roll_deg, pitch_deg, insertion = (np.atleast_1d(np.asarray(x, dtype=float)) for x in (roll_deg, pitch_deg, insertion))
     for name, values, unit in (("roll", np.radians(roll_deg), "deg"), ("pitch", np.radians(pitch_deg), "deg"),
                                ("insertion", insertion, "m")):
@@ -122,7 +187,6 @@ def driven_gravity(robot: Robot, drive: DriveParameters, Q: np.ndarray, progress
     (:func:`rcm_kin.dynamics.state_space.driven_gravity_function`, the numbers of
     :func:`gravity_batch`) compiled to C and
     mapped over the poses; ``progress`` shows a bar over blocks of ``block`` poses."""
-    from rcm_kin.symbolic.compiled import map_points
 
     offsets = tuple((link, tuple(float(x) for x in h)) for link, h in sorted(drive.gravity_offsets.items()))
     gravity = _compiled_gravity(robot, offsets)
@@ -139,8 +203,6 @@ def driven_gravity(robot: Robot, drive: DriveParameters, Q: np.ndarray, progress
 def _compiled_gravity(robot: Robot, offsets: tuple) -> ca.Function:
     """The driven gravity with first moments ``offsets`` ((link, (hx, hy, hz)), ...), compiled:
     built once per robot and offsets in a process (and on disk by :mod:`rcm_kin.symbolic.compiled`)."""
-    from rcm_kin.dynamics.state_space import driven_gravity_function
-    from rcm_kin.symbolic.compiled import compiled
 
     return compiled(driven_gravity_function(robot, {link: np.array(h) for link, h in offsets}))
 
@@ -211,7 +273,6 @@ def write_gravity_maps(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg
 
     if not figures:
         return gmap, write_tables()
-    from rcm_kin.plotting import effort_heatmaps, insertion_curves, thesis_trend_curves
 
     # the tables are formatted in compiled code and written by the OS, both without the GIL, so on
     # a second thread they take (almost) no time from the figures, which are drawn in Python

@@ -2,7 +2,7 @@
 
 import lazy_loader
 
-__all__ = ["closed_chain_rnea", "compiled", "map_points", "rk4_map", "single_call", "tree_functions"]
+__all__ = ["closed_chain_rnea", "map_points", "rk4_map", "single_call", "tree_functions"]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,
@@ -10,6 +10,6 @@ __getattr__, __dir__, _ = lazy_loader.attach(
         "tree": ["tree_functions"],
         "closed_chain": ["closed_chain_rnea"],
         "integrators": ["rk4_map"],
-        "compiled": ["compiled", "map_points", "single_call"],
+        "compiled": ["map_points", "single_call"],
     },
 )

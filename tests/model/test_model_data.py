@@ -1,0 +1,96 @@
+"""Pinocchio's Model/Data split in rcm_kin: the robot cache follows the files' content, and no two
+threads (or callers with their own workspaces) share scratch data."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import threading
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import rcm_kin as rk
+from rcm_kin.model.loading import urdf_dir
+
+
+@pytest.fixture()
+def psm_copy(tmp_path):
+    for suffix in (".toml", ".urdf"):
+        shutil.copy(urdf_dir() / f"psm{suffix}", tmp_path / f"psm{suffix}")
+    return tmp_path / "psm.toml"
+
+
+def plain_gravity(urdf, q_tree):
+    """Open-tree gravity of a URDF by plain Pinocchio (the independent reference)."""
+    model = pin.buildModelFromUrdf(str(urdf))
+    model.gravity.linear = np.array([0.0, 0.0, -9.81])
+    return pin.computeGeneralizedGravity(model, model.createData(), q_tree)
+
+
+def test_an_edited_urdf_is_reloaded(psm_copy):
+    q = np.array([0.2, -0.3, 0.1, 0, 0, 0, 0])
+    before = rk.load_robot(str(psm_copy))
+    assert rk.load_robot(str(psm_copy)) is before                      # unchanged files: one build
+    tau_before = rk.gravity_torque(before, q, method="constrained")
+    urdf = psm_copy.with_suffix(".urdf")
+    # every mass tripled, centres of mass kept: gravity is linear in the masses, so it triples
+    urdf.write_text(re.sub(r'<mass value="([^"]+)"', lambda m: f'<mass value="{3 * float(m.group(1))!r}"',
+                           urdf.read_text()))
+    after = rk.load_robot(str(psm_copy))
+    assert after is not before
+    np.testing.assert_allclose(rk.gravity_torque(after, q, method="constrained"), 3 * tau_before, rtol=1e-12,
+                               atol=1e-12)
+    # the reloaded model is the edited file's: open-tree gravity equals plain Pinocchio on it
+    from rcm_kin.model.constrained import solve_loops
+    q_tree = solve_loops(after, q)
+    np.testing.assert_allclose(pin.computeGeneralizedGravity(after.tree, after.create_data().tree, q_tree),
+                               plain_gravity(urdf, q_tree), atol=1e-12)
+
+
+def test_an_edited_sidecar_is_reloaded(psm_copy):
+    before = rk.load_robot(str(psm_copy))
+    text = psm_copy.read_text()
+    psm_copy.write_text(text + "\n# an edit that changes the bytes only\n")
+    assert rk.load_robot(str(psm_copy)) is not before
+
+
+def test_each_caller_owns_its_data():
+    psm = rk.load_robot("psm")
+    a, b = psm.create_data(), psm.create_data()
+    assert a.tree is not b.tree and a.reduced is not b.reduced
+    assert all(x is not y for x, y in zip(a.constraints, b.constraints))
+    q1, q2 = [0.1, -0.2, 0.09, 0, 0, 0, 0], [-0.3, 0.25, 0.15, 0, 0, 0, 0]
+    fk1 = rk.forward_kinematics(psm, q1, data=a)
+    rk.forward_kinematics(psm, q2, data=b)
+    # a's workspace still holds q1's placements
+    fid = psm.frame_id("tool_tip")
+    np.testing.assert_allclose(a.reduced.oMf[fid].translation, fk1.frames["tool_tip"].translation, atol=0)
+
+
+def test_two_threads_do_not_share_scratch_data():
+    psm = rk.load_robot("psm")
+    rng = np.random.default_rng(7)
+    poses = rng.uniform(psm.lower[:3], psm.upper[:3], size=(400, 3))
+    poses = np.column_stack([poses, np.zeros((len(poses), 4))])
+    expected = [rk.forward_kinematics(psm, q).frames["tool_tip"].translation for q in poses]
+    seen, errors, barrier = {}, [], threading.Barrier(2)
+
+    def work(name, order):
+        barrier.wait()
+        seen[name] = psm.scratch
+        for _ in range(3):
+            for i in order:
+                got = rk.forward_kinematics(psm, poses[i]).frames["tool_tip"].translation
+                if not np.allclose(got, expected[i], atol=1e-12):
+                    errors.append((name, i))
+
+    threads = [threading.Thread(target=work, args=(n, o)) for n, o in
+               (("a", range(len(poses))), ("b", range(len(poses) - 1, -1, -1)))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert seen["a"] is not seen["b"] and seen["a"].tree is not seen["b"].tree
+    assert not errors, f"{len(errors)} poses computed wrong under two threads"

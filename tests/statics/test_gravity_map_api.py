@@ -1,0 +1,63 @@
+"""The torque map as a labelled result: named axes, selection by name, writing itself; checked
+against the holding effort computed pose by pose (Pinocchio gravity through the drive model)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import rcm_kin as rk
+from rcm_kin.dynamics.drive import drive_effort
+
+
+@pytest.fixture(scope="module")
+def tmap():
+    return rk.gravity_map(rk.load_robot("psm"), roll_deg=[-20.0, 0.0, 10.0], pitch_deg=[-15.0, 5.0], insertion=0.08)
+
+
+def test_the_axes_are_named(tmap):
+    assert tmap.dims == ("pitch", "roll", "insertion", "joint")
+    assert tmap.effort.pwm.shape == tuple(len(tmap.coords[d]) for d in tmap.dims)
+    assert tmap.coords["joint"] == ("roll", "pitch", "insertion")
+
+
+@pytest.mark.parametrize("roll, pitch", [(10.0, -15.0), (-20.0, 5.0), (0.0, 5.0)])
+def test_sel_by_name_is_the_pose_named(tmap, roll, pitch):
+    """At each pose, the effort selected by name equals the holding effort computed on its own
+    (the open tree's gravity with the calibrated offsets, through the drive)."""
+    psm, drive = rk.load_robot("psm"), rk.load_drive_parameters()
+    q = [np.radians(roll), np.radians(pitch), 0.08, 0, 0, 0, 0]
+    expected = rk.holding_effort(psm, q).drive
+    got = tmap.sel(roll=roll, pitch=pitch)
+    np.testing.assert_allclose(got.tau, expected.tau, atol=1e-9)
+    np.testing.assert_allclose(got.pwm, expected.pwm, atol=1e-9)
+    np.testing.assert_allclose(got.pwm, drive_effort(drive, expected.tau).pwm, atol=1e-9)
+
+
+def test_roll_and_pitch_are_not_interchangeable(tmap):
+    """Reading [roll, pitch] where the axes are [pitch, roll] is the silent error the names prevent."""
+    assert not np.allclose(tmap.sel(roll=10.0, pitch=5.0).pwm, tmap.effort.pwm[0, 1, 0])
+    np.testing.assert_array_equal(tmap.sel(roll=10.0, pitch=5.0).pwm, tmap.effort.pwm[1, 2, 0])
+
+
+def test_a_pose_off_the_grid_is_refused(tmap):
+    with pytest.raises(rk.RcmKinError, match="roll 7 deg is not on the map's grid .nearest 10 deg"):
+        tmap.sel(roll=7.0, pitch=5.0)
+
+
+def test_the_map_writes_itself(tmp_path, tmap):
+    table = np.load(tmap.write(tmp_path / "map.npz"))
+    assert table["pwm_roll"].size == tmap.effort.pwm[..., 0].size
+    csv = tmap.write(tmp_path / "map.csv").read_text().splitlines()
+    assert csv[0].startswith("roll_deg,pitch_deg,insertion_m") and len(csv) == 1 + 6
+    with pytest.raises(rk.RcmKinError, match="written as .csv or .npz"):
+        tmap.write(tmp_path / "map.xlsx")
+
+
+def test_the_drive_defaults_to_the_shipped_set():
+    psm = rk.load_robot("psm")
+    a = rk.gravity_map(psm, None, [0.0], [10.0], [0.1])
+    b = rk.gravity_map(psm, rk.load_drive_parameters(), [0.0], [10.0], [0.1])
+    np.testing.assert_array_equal(a.effort.pwm, b.effort.pwm)
+    with pytest.raises(rk.RcmKinError, match="drive must be DriveParameters"):
+        rk.gravity_map(psm, "psm_drive.toml", [0.0], [10.0], [0.1])
