@@ -28,7 +28,7 @@ _API = {
     "statics": ["GravityMap", "gravity_map", "holding_effort"],
     "control": ["linearize", "linearize_grid", "schedule_gains"],
     "simulation": ["simulate", "run_experiment", "tracking_metrics"],
-    "visualization": ["robot_view", "write_html"],
+    "visualization": ["robot_view", "show", "write_html"],
     "report": ["write_report"],
 }
 

@@ -24,11 +24,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.state_space import drive_constants
 from rcm_kin.errors import RcmKinError
 
 if TYPE_CHECKING:
-    from rcm_kin.dynamics.drive import DriveParameters
     from rcm_kin.dynamics.state_space import DriveConstants
 
 DEFAULT_RAMP_DEG_S = 2.0    # deg/s: v_ramp of tanh(rdot / v_ramp)

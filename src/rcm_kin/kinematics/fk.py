@@ -9,7 +9,7 @@ import pinocchio as pin
 
 from rcm_kin.model.constrained import closure_residual
 from rcm_kin.model.reduced import tree_configuration
-from rcm_kin.model.robot import Robot
+from rcm_kin.model.robot import Robot, RobotData
 
 
 @dataclass(frozen=True)
