@@ -4,9 +4,9 @@ Each value is written with ``DECIMALS`` = 9 decimals, trailing zeros dropped but
 (``-30.0``, ``0.08``, ``12.533010697``): the text of ``repr(round(x, 9))`` but for ties in the
 last place (the value is scaled by 1e9 and rounded in binary; the written number is within
 0.5e-9 of ``x`` plus an ulp). Blocks of rows are formatted by a compiled C function
-(:mod:`rcm_kin.csv_native`; a million rows of 12 values in about 0.3 s) or, without a C
-compiler, by the same rules vectorised in NumPy (:func:`format_rows_numpy`, about ten times
-slower), both in the memory of one block of text.
+(:mod:`rcm_kin.csv_native`) or, without a C compiler, by the same rules vectorised in NumPy
+(:func:`format_rows_numpy`, slower; timings in docs/performance.md), both in the memory of one
+block of text.
 """
 
 from __future__ import annotations
