@@ -43,6 +43,10 @@ def check_map_size(poses: int) -> None:
 
 @dataclass(frozen=True)
 class GravityMap:
+    """Holding effort over a grid roll x pitch x insertion (:func:`gravity_map`): the axes, and
+    the drive effort at every pose, indexed ``[pitch, roll, insertion, joint]`` (joints roll,
+    pitch, insertion)."""
+
     roll_deg: np.ndarray        # (R,)
     pitch_deg: np.ndarray       # (P,)
     insertion: np.ndarray       # (I,) m
