@@ -50,3 +50,12 @@ def test_readme_is_short_and_links_pages_that_exist():
     assert len(readme.splitlines()) <= 200
     links = re.findall(r"\]\(((?:docs/)?[\w./-]+\.(?:md|png))(?:#[\w-]+)?\)", readme)
     assert links and [link for link in links if not (ROOT / link).is_file()] == []
+
+
+def test_readme_python_example_runs(capsys):
+    readme = (ROOT / "README.md").read_text()
+    (block,) = re.findall(r"```python\n(.*?)```", readme, re.S)
+    namespace = {}
+    exec(compile(block, "README.md", "exec"), namespace)
+    assert list(namespace["ik"].q) == pytest.approx([0.1, -0.2, 0.09])
+    assert capsys.readouterr().out.count("\n") >= 2
