@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 
 import rcm_kin as rk
-from rcm_kin.visualization import show   # the subpackage's face: the top level has no call that poses a view
 
 out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp(prefix="meshcat_view_"))
 out.mkdir(parents=True, exist_ok=True)
@@ -29,7 +28,7 @@ viz = rk.robot_view(psm, frames=("rcm", "tool_tip"))
 # pitch -15 deg, insertion 0.1 m, the instrument joints at 0; the loop's passive joints follow
 q = np.zeros(psm.nq)
 q[:3] = np.radians(10), np.radians(-15), 0.10
-show(viz, psm, q)
+rk.show(viz, psm, q)
 
 # where the tool tip is at that pose (base frame: origin at the remote centre of motion, z up)
 tip = rk.forward_kinematics(psm, q).frames["tool_tip"].translation

@@ -28,35 +28,23 @@ pitch = np.linspace(-30, 30, 61)       # deg
 insertion = 0.08                       # m
 tmap = rk.gravity_map(psm, drive, roll_deg=roll, pitch_deg=pitch, insertion=insertion)
 
-# the named axes: the effort arrays are indexed [pitch, roll, insertion, joint], joints in the
-# driven order roll, pitch, insertion
-joints = ("roll", "pitch", "insertion")
-i_pitch = int(np.argmin(np.abs(tmap.pitch_deg - (-15))))
-i_roll = int(np.argmin(np.abs(tmap.roll_deg - 10)))
-pwm = tmap.effort.pwm[i_pitch, i_roll, 0]
-tau = tmap.effort.tau[i_pitch, i_roll, 0]
-print(f"at roll {tmap.roll_deg[i_roll]:g} deg, pitch {tmap.pitch_deg[i_pitch]:g} deg, insertion {insertion} m:")
-for j, name in enumerate(joints):
-    print(f"  {name:9s} holding torque {tau[j]:8.3f}  PWM {pwm[j]:8.2f} counts")
+# the named axes: tmap.dims is (pitch, roll, insertion, joint); read a pose by name, not by position
+print(f"axes {tmap.dims}, joints {tmap.coords['joint']}")
+at = tmap.sel(roll=10, pitch=-15)
+print(f"at roll 10 deg, pitch -15 deg, insertion {insertion} m:")
+for j, name in enumerate(tmap.coords["joint"]):
+    print(f"  {name:9s} holding torque {at.tau[j]:8.3f}  PWM {at.pwm[j]:8.2f} counts")
 
-# the same pose from the single-pose call agrees with the map
+# the same pose from the single-pose call (all seven actuated joints) agrees with the map
 q = np.zeros(psm.nq)
-q[:3] = np.radians(tmap.roll_deg[i_roll]), np.radians(tmap.pitch_deg[i_pitch]), insertion
-assert np.allclose(rk.holding_effort(psm, q).drive.pwm, pwm)
+q[:3] = np.radians(10), np.radians(-15), insertion
+assert np.allclose(rk.holding_effort(psm, q).drive.pwm, at.pwm)
 
-# the largest holding PWM over the grid, and where
+# the largest holding PWM of the pitch over the grid, and where
 worst = np.unravel_index(np.argmax(np.abs(tmap.effort.pwm[..., 1])), tmap.effort.pwm.shape[:3])
 print(f"largest pitch PWM {tmap.effort.pwm[worst][1]:.1f} counts at roll {tmap.roll_deg[worst[1]]:g} deg, "
       f"pitch {tmap.pitch_deg[worst[0]]:g} deg")
 
-# the tables: one row per pose (roll, pitch in deg), as CSV and as NumPy arrays
-P, R = np.meshgrid(tmap.pitch_deg, tmap.roll_deg, indexing="ij")
-columns = {"roll_deg": R.ravel(), "pitch_deg": P.ravel()}
-for quantity in ("tau", "voltage", "pwm"):
-    values = getattr(tmap.effort, quantity)[:, :, 0, :]
-    for j, name in enumerate(joints):
-        columns[f"{quantity}_{name}"] = values[..., j].ravel()
-np.savetxt(out / "torque_map.csv", np.column_stack(list(columns.values())), delimiter=",",
-           header=",".join(columns), comments="", fmt="%.9g")
-np.savez(out / "torque_map.npz", **columns)
-print(f"wrote {out / 'torque_map.csv'} and {out / 'torque_map.npz'} ({R.size} poses)")
+# the tables: one row per pose, as CSV and as NumPy arrays (np.load gives the columns)
+for name in ("torque_map.csv", "torque_map.npz"):
+    print(f"wrote {tmap.write(out / name)}")

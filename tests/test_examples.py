@@ -28,10 +28,13 @@ def test_every_example_is_tested():
 def test_torque_map_example(tmp_path):
     out = run_example("torque_map.py", tmp_path / "maps")
     assert "PWM" in out
-    table = np.loadtxt(tmp_path / "maps" / "torque_map.csv", delimiter=",", skiprows=1)
+    csv = tmp_path / "maps" / "torque_map.csv"
+    header = csv.read_text().splitlines()[0].split(",")
+    table = np.loadtxt(csv, delimiter=",", skiprows=1)
     arrays = np.load(tmp_path / "maps" / "torque_map.npz")
-    assert table.shape == (61 * 61, 11) and np.all(np.isfinite(table))
-    assert np.allclose(arrays["pwm_pitch"], table[:, 9])
+    assert table.shape == (61 * 61, len(header)) and np.all(np.isfinite(table))
+    assert sorted(arrays.files) == sorted(header)
+    assert np.allclose(arrays["pwm_pitch"], table[:, header.index("pwm_pitch")], atol=1e-9)
 
 
 def test_linear_model_example(tmp_path):

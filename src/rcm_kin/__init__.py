@@ -34,4 +34,7 @@ _API = {
 
 __all__ = sorted(name for names in _API.values() for name in names)
 
-__getattr__, __dir__, _ = lazy_loader.attach(__name__, submod_attrs=_API)
+SUBPACKAGES = ["codegen", "control", "dynamics", "export", "identification", "kinematics", "model", "robustness",
+               "safety", "simulation", "statics", "symbolic", "visualization"]
+
+__getattr__, __dir__, _ = lazy_loader.attach(__name__, submodules=SUBPACKAGES, submod_attrs=_API)
