@@ -5,8 +5,8 @@ The C function writes exactly the characters of the NumPy formatter
 times faster and without its per-character temporaries. It is built with the C compiler that
 compiles the CasADi functions (``$CC``, default ``cc``; :mod:`rcm_kin.symbolic.compiled`) and
 cached beside them, named by a SHA-256 of its source, the compile command and the machine.
-Without a working compiler :func:`native_formatter` is None after one line on stderr, and the
-tables are formatted by NumPy.
+Without a working compiler :func:`native_formatter` is None after a
+:class:`~rcm_kin.errors.CompilerFallbackWarning`, and the tables are formatted by NumPy.
 """
 
 from __future__ import annotations
@@ -14,13 +14,12 @@ from __future__ import annotations
 import ctypes
 import functools
 import shutil
-import sys
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import CompilerFallbackWarning, RcmKinError, warn
 from rcm_kin.symbolic.compiled import build_library, cache_key, compiler_command, load_library
 
 COMPILE_FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared")
@@ -81,7 +80,7 @@ size_t rcm_csv_format_rows(const double *table, size_t rows, size_t cols, unsign
 
 def native_formatter() -> Callable[[np.ndarray], bytes] | None:
     """The compiled formatter (``table`` C-contiguous float64 (rows, cols), finite, below 9e9 in
-    magnitude -> CSV bytes), or None when no C compiler builds it (one line on stderr, once per
+    magnitude -> CSV bytes), or None when no C compiler builds it (a warning, once per
     compiler setting and process)."""
     return _formatter(tuple(compiler_command()))
 
@@ -106,7 +105,7 @@ def _formatter(command: tuple[str, ...]) -> Callable[[np.ndarray], bytes] | None
 
 
 def _fallback(reason: str) -> None:
-    print(f"warning: {reason}: CSV tables are formatted by NumPy, slower", file=sys.stderr)
+    warn(f"{reason}: CSV tables are formatted by NumPy, slower", CompilerFallbackWarning)
     return None
 
 

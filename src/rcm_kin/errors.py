@@ -1,35 +1,129 @@
-"""The one exception type for user errors (bad input, unreachable targets, bad files), and the
-file helpers that turn the operating system's errors into it."""
+"""The exception types for user errors (bad input, unreachable targets, bad files), the warning
+types for what the library does differently than asked (one line each), and the file helpers that
+turn the operating system's errors into an error.
 
+An error's message names the library's parameters (``params``, ``harmonics``); ``parameter``
+says which one was wrong, so that the CLI can name its flag instead. The subclasses carry the
+facts their message states as attributes (``path``, ``key``, ``values``, ...; None where not
+known). Warnings go through :mod:`warnings` (never printed by the library): the CLI prints each
+distinct one as a line ``warning: <message>`` after a successful run.
+"""
+
+import sys
 import tomllib
+import warnings
 from pathlib import Path
 
 
 class RcmKinError(ValueError):
     """A request rcm_kin cannot satisfy; the message says what was wrong and what to do.
 
-    The CLI prints it as one line ``error: <message>`` and exits with status 2.
+    ``parameter``: the name of the function parameter at fault (a tuple when several are), or
+    None. The CLI prints it as one line ``error: <message>`` (the parameter named by its flag)
+    and exits with status 2.
     """
+
+    def __init__(self, message: str = "", *, parameter: str | tuple[str, ...] | None = None):
+        super().__init__(message)
+        self.parameter = parameter
+
+    @property
+    def parameters(self) -> tuple[str, ...]:
+        """The parameters at fault, as a tuple (empty when none is named)."""
+        if self.parameter is None:
+            return ()
+        return (self.parameter,) if isinstance(self.parameter, str) else tuple(self.parameter)
 
 
 class ParameterFileError(RcmKinError):
-    """A parameter file holds a key, type or value outside its schema (the file and key are named)."""
+    """A parameter file holds a key, type or value outside its schema (the file and key are named).
+
+    ``path`` the file, ``table`` the TOML table (``roll``, ``gravity_offsets``), ``key`` the key in it.
+    """
+
+    def __init__(self, message: str = "", *, path=None, table: str | None = None, key: str | None = None,
+                 parameter: str | tuple[str, ...] | None = None):
+        super().__init__(message, parameter=parameter)
+        self.path, self.table, self.key = path, table, key
 
 
 class JointLimitError(RcmKinError):
-    """A pose (given, or reached by a simulation) outside the joints' limits: refused, not computed."""
+    """A pose (given, or reached by a simulation) outside the joints' limits: refused, not computed.
+
+    ``joints`` the names of the joints outside, ``values`` their positions, ``lower`` and ``upper``
+    their limits (the model's units: rad, m), in the same order.
+    """
+
+    def __init__(self, message: str = "", *, joints: tuple[str, ...] | None = None, values=None, lower=None,
+                 upper=None, parameter: str | tuple[str, ...] | None = None):
+        super().__init__(message, parameter=parameter)
+        self.joints, self.values, self.lower, self.upper = joints, values, lower, upper
 
 
 class WorkLimitError(RcmKinError):
-    """A request that would need more memory or time than the stated bound (the message says how much)."""
+    """A request that would need more memory or time than the stated bound (the message says how much).
+
+    ``requested`` the amount asked for and ``limit`` the bound, in the message's unit (poses,
+    controller periods, logs).
+    """
+
+    def __init__(self, message: str = "", *, requested=None, limit=None,
+                 parameter: str | tuple[str, ...] | None = None):
+        super().__init__(message, parameter=parameter)
+        self.requested, self.limit = requested, limit
 
 
 class LogDataError(RcmKinError):
-    """A measured log with missing or non-finite values where a fit needs numbers."""
+    """A measured log with missing or non-finite values where a fit needs numbers.
+
+    ``path`` the log, ``row`` the first bad data row (CSV, from 1) or complete message (bag, from
+    1), ``column`` its column (CSV) or ``joint/field`` (bag).
+    """
+
+    def __init__(self, message: str = "", *, path=None, row: int | None = None, column: str | None = None,
+                 parameter: str | tuple[str, ...] | None = None):
+        super().__init__(message, parameter=parameter)
+        self.path, self.row, self.column = path, row, column
 
 
 class NonFiniteResultError(RcmKinError):
-    """A computation gave NaN or an infinity: the inputs are outside what the model can compute."""
+    """A computation gave NaN or an infinity: the inputs are outside what the model can compute.
+
+    ``where`` says where the first non-finite number is (a result's key, or the time reached).
+    """
+
+    def __init__(self, message: str = "", *, where: str | None = None,
+                 parameter: str | tuple[str, ...] | None = None):
+        super().__init__(message, parameter=parameter)
+        self.where = where
+
+
+class RcmKinWarning(UserWarning):
+    """Something rcm_kin did differently than asked, or data it left out: a one-line user-facing
+    message (the CLI prints it as ``warning: <message>``)."""
+
+
+class CompilerFallbackWarning(RcmKinWarning):
+    """No C compiler (or no writable cache): the compiled code is replaced by a slower
+    interpreted equivalent with the same results. Given once per process and reason."""
+
+
+class LogDataWarning(RcmKinWarning):
+    """Records of a log left out (cut-off rows, messages missing a field); the log is still read."""
+
+
+def warn(message: str, category: type[Warning] = RcmKinWarning) -> None:
+    """:func:`warnings.warn` of ``message``, located at the first caller outside rcm_kin (the
+    line of the user's code that led to it)."""
+    frame, level = sys._getframe(1), 1
+    while frame.f_back is not None and _inside(frame):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level + 1)
+
+
+def _inside(frame) -> bool:
+    name = frame.f_globals.get("__name__", "")
+    return name == "rcm_kin" or name.startswith("rcm_kin.")
 
 
 def read_toml(path: Path, what: str) -> dict:

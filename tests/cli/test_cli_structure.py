@@ -88,7 +88,7 @@ def test_inverse_kinematics_round_trip(name, q, rpy):
         np.testing.assert_allclose(solution.q, q, atol=1e-9)
 
 
-@pytest.mark.parametrize("name, rpy, message", [("mtm", [0, 0, 0], "--rpy is for the PSM"),
+@pytest.mark.parametrize("name, rpy, message", [("mtm", [0, 0, 0], "`rpy` is for the PSM"),
                                                 ("davinci", None, "no IK for robot 'davinci'"),
                                                 ("psm", None, "out of reach")])
 def test_inverse_kinematics_errors(name, rpy, message):

@@ -105,8 +105,10 @@ def two_topic_bag(tmp_path) -> Path:
 
 
 def test_topic_choice_missing_fields_and_recording_time(two_topic_bag):
-    with pytest.raises(RcmKinError, match=r"no sensor_msgs/msg/JointState topic /psm_joint_telemetry .*/arm/joints"):
+    with pytest.raises(RcmKinError, match=r"no sensor_msgs/msg/JointState topic /psm_joint_telemetry .*/arm/joints") \
+            as caught:
         load_telemetry(two_topic_bag)
+    assert caught.value.parameter == "topic" and str(caught.value).endswith("choose one with `topic`")
     with telemetry_topic("/arm/joints"), pytest.warns(UserWarning, match="1 messages missing a joint's field"):
         log = load_telemetry(two_topic_bag)
     keep = [0, 1, 3, 4]                      # message 2 has no efforts: left out with a warning, as a cut CSV row
@@ -126,13 +128,15 @@ def test_a_non_finite_message_is_an_error(tmp_path):
     messages = [(10**9 + k, _joint_state(stamp + Decimal(k) / 400, ["roll"], [float("nan") if k == 3 else k],
                                          [1.0], [0.0])) for k in range(6)]
     bag = write_bag(tmp_path / "nan", "MCAP", {"/psm_joint_telemetry": messages})
-    with pytest.raises(LogDataError, match="non-finite roll position, the first the 4th"):
+    with pytest.raises(LogDataError, match="non-finite roll position, the first the 4th") as caught:
         load_telemetry(bag)
+    assert (caught.value.path, caught.value.row, caught.value.column) == (bag, 4, "roll/position")
 
 
 def test_cli_topic_option_and_one_line_errors(two_topic_bag, tmp_path, capsys):
     assert main(["sysid", str(two_topic_bag), "--joint", "roll", "--topic", "/nope"]) == 2
-    assert "no sensor_msgs/msg/JointState topic /nope" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "no sensor_msgs/msg/JointState topic /nope" in err and err.endswith("; choose one with --topic\n")
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(b"not a bag")
     assert main(["sysid", str(bad), "--joint", "roll"]) == 2

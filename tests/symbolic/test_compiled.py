@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 import shutil
 
@@ -9,8 +10,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from rcm_kin.errors import RcmKinError
-from rcm_kin.symbolic import compiled as comp
+from rcm_kin.errors import CompilerFallbackWarning, RcmKinError
+
+comp = importlib.import_module("rcm_kin.symbolic.compiled")   # the module (the package's ``compiled`` is the function)
 
 
 needs_compiler = pytest.mark.skipif(shutil.which(os.environ.get("CC") or "cc") is None,
@@ -125,24 +127,30 @@ def test_cache_folder_respects_xdg(monkeypatch, tmp_path):
     assert str(comp.cache_folder()).endswith(".cache/rcm-kin/casadi")
 
 
-def test_no_compiler_falls_back_with_one_line(cache, model, capsys, tmp_path, monkeypatch):
-    """With the compiler hidden the interpreted function comes back and stderr says so once."""
+def test_no_compiler_falls_back_with_one_warning(cache, model, capsys, tmp_path, monkeypatch):
+    """With the compiler hidden the interpreted function comes back and one warning says so
+    (through ``warnings``: nothing printed)."""
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
-    f1, f2 = comp.compiled(model.gravity), comp.compiled(model.forward)
+    with pytest.warns(CompilerFallbackWarning) as caught:
+        f1, f2 = comp.compiled(model.gravity), comp.compiled(model.forward)
     assert f1 is model.gravity and f2 is model.forward
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("warning: no C compiler") and "interpreted" in err[0]
+    assert len(caught) == 1
+    message = str(caught[0].message)
+    assert message.startswith("no C compiler") and "interpreted" in message
+    assert caught[0].filename == __file__                    # located at the caller's line
+    assert capsys.readouterr() == ("", "")
     assert not cache.exists()
 
 
 @needs_compiler
-def test_unwritable_cache_falls_back_with_one_line(model, monkeypatch, tmp_path, capsys):
+def test_unwritable_cache_falls_back_with_one_warning(model, monkeypatch, tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
     monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))           # the cache would have to live in a file
-    assert comp.compiled(model.gravity) is model.gravity
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("warning: cannot write the compiled-function cache")
+    with pytest.warns(CompilerFallbackWarning) as caught:
+        assert comp.compiled(model.gravity) is model.gravity
+    assert len(caught) == 1 and str(caught[0].message).startswith("cannot write the compiled-function cache")
+    assert capsys.readouterr() == ("", "")
 
 
 def test_compiler_failure_is_an_error(cache, model, monkeypatch):

@@ -13,7 +13,7 @@ from importlib.metadata import PackageNotFoundError, version
 
 from rcm_kin.cli import (control, drive_train, export, identification, kinematics, robustness, safety, simulation,
                          statics, views)
-from rcm_kin.cli.common import RAW, Parser
+from rcm_kin.cli.common import RAW, Parser, command_options, with_flags
 from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.rosbag import DEFAULT_TOPIC, telemetry_topic
 
@@ -59,18 +59,19 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command; 0 on success, 2 on a user error, 130 on Ctrl-C.
 
     The one place where errors become output: an :class:`RcmKinError` (and an operating-system
-    error on a file) is the single line ``error: ...`` on stderr, after any progress bar is cleared.
+    error on a file) is the single line ``error: ...`` on stderr, after any progress bar is cleared;
+    the library parameter it names (``exc.parameter``) is named by the command's flag.
     Warnings raised while the command runs are held back: on success each is one line
     ``warning: ...`` on stderr; on an error only the error line is printed.
     """
-    parser = build_parser()
+    parser, args = build_parser(), None
     with warnings.catch_warnings(record=True) as caught:     # the filters in force decide what is recorded
         try:
             args = parser.parse_args(argv)    # a usage error exits here (status 2), as argparse does
             with telemetry_topic(getattr(args, "topic", None)):
                 args.func(args)
         except (RcmKinError, OSError) as exc:
-            return _fail(_message(exc), 2)
+            return _fail(_message(exc, command_options(parser, getattr(args, "command", None))), 2)
         except KeyboardInterrupt:
             return _fail("interrupted", 130)
     for message in dict.fromkeys(" ".join(str(w.message).split()) for w in caught):
@@ -78,10 +79,11 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _message(exc: Exception) -> str:
-    """One line: an RcmKinError's message, or an OSError's file and reason."""
+def _message(exc: Exception, options: set[str]) -> str:
+    """One line: an RcmKinError's message (the parameters it names named by their flags among the
+    command's ``options``), or an OSError's file and reason."""
     if isinstance(exc, RcmKinError):
-        text = str(exc)
+        text = with_flags(str(exc), exc.parameters, options)
     else:
         text = f"cannot use {exc.filename}: {exc.strerror}" if exc.filename else f"{exc.strerror or exc}"
     return " ".join(text.split())

@@ -17,6 +17,12 @@ from rcm_kin.model import load_robot, robot_names
 
 RAW = argparse.RawDescriptionHelpFormatter      # keeps the epilogs' example lines
 PARAMS_HELP = "drive parameter TOML (default: the shipped calibrated set)"
+# the library's parameter names (as its messages write them, in backticks: `harmonics`) -> the
+# flag that sets them; a name not listed is its flag (``--`` and dashes) when the command has it
+PARAMETER_FLAGS = {"params": "--params", "harmonics": "--harmonics", "duration": "--duration", "points": "--points",
+                   "delta": "--delta", "error_bound": "--error-bound", "r_max": "--r-max", "renderer": "--renderer",
+                   "rpy": "--rpy", "segment": "--segment", "topic": "--topic", "grid": "--grid",
+                   "pwm_limit": "--pwm-limit"}
 
 
 class Parser(argparse.ArgumentParser):
@@ -38,6 +44,25 @@ class Parser(argparse.ArgumentParser):
         except BadValue as exc:
             name = "/".join(action.option_strings) or action.metavar or action.dest
             raise ArgumentValueError(f"{name}: {exc}") from None
+
+
+def with_flags(message: str, parameters: tuple[str, ...], options: set[str]) -> str:
+    """``message`` with each of ``parameters``, written in it in backticks (`` `name` ``), named by its
+    flag: :data:`PARAMETER_FLAGS`'s, else ``--name`` when the command's ``options`` hold it."""
+    for name in parameters:
+        flag = PARAMETER_FLAGS.get(name)
+        if flag is None and (derived := "--" + name.replace("_", "-")) in options:
+            flag = derived
+        if flag is not None:
+            message = message.replace(f"`{name}`", flag)
+    return message
+
+
+def command_options(parser: argparse.ArgumentParser, command: str | None) -> set[str]:
+    """The option strings of the sub-command ``command`` of ``parser`` (empty when not known)."""
+    sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
+    chosen = None if sub is None else sub.choices.get(command)
+    return set() if chosen is None else {o for a in chosen._actions for o in a.option_strings}
 
 
 class BadValue(Exception):
@@ -157,7 +182,7 @@ def check_finite(payload: dict) -> None:
     where = _non_finite(payload)
     if where:
         raise NonFiniteResultError(f"the result is not finite ({where}): the inputs are outside what the model "
-                                   "can compute; check the parameter file and the numbers given")
+                                   "can compute; check the parameter file and the numbers given", where=where)
 
 
 def emit(args, payload: dict, text: str) -> None:

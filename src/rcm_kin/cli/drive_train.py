@@ -132,8 +132,7 @@ def add_excite(sub) -> None:
 
 def cmd_excite(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.identification.excitation import UNITS, check_request, design_excitation
-    from rcm_kin.identification.replay import write_excitation
+    from rcm_kin.identification.excitation import UNITS, check_request, design_excitation, write_excitation
 
     require_psm(args, "excite designs the PSM's drive-train experiments, not the {robot}'s")
     joints = check_request(args.duration, args.joint, args.harmonics)

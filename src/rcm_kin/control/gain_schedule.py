@@ -131,18 +131,19 @@ def check_grid(values, what: str, lower: float, upper: float) -> np.ndarray:
     return values
 
 
-def parse_grid(text: str) -> tuple[np.ndarray, np.ndarray]:
+def parse_grid(grid: str) -> tuple[np.ndarray, np.ndarray]:
     """``thesis`` or ``ROLLS:PITCHES`` with comma-separated degrees, e.g. ``-20,0,20:-15,0,15``,
     inside the PSM's joint range (its URDF limits)."""
-    if text == "thesis":
+    if grid == "thesis":
         return np.array(THESIS_ROLL_DEG), np.array(THESIS_PITCH_DEG)
-    parts = text.split(":")
+    parts = grid.split(":")
     if len(parts) != 2:
-        raise RcmKinError(f"--grid is 'thesis' or ROLLS:PITCHES in degrees (e.g. -20,0,20:-15,0,15), got '{text}'")
+        raise RcmKinError(f"`grid` is 'thesis' or ROLLS:PITCHES in degrees (e.g. -20,0,20:-15,0,15), got '{grid}'",
+                          parameter="grid")
     try:
         rolls, pitches = ([float(v) for v in p.split(",")] for p in parts)
     except ValueError:
-        raise RcmKinError(f"--grid values must be numbers, got '{text}'") from None
+        raise RcmKinError(f"`grid` values must be numbers, got '{grid}'", parameter="grid") from None
     psm = load_robot("psm")
     limits = {joint: (lo, hi) for joint, lo, hi in zip(psm.actuated, psm.lower, psm.upper)}
     return check_grid(rolls, "roll", *limits["roll"]), check_grid(pitches, "pitch", *limits["pitch"])

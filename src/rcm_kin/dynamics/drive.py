@@ -24,7 +24,7 @@ import numpy as np
 
 from rcm_kin.dynamics.drive_schema import DRIVE_TRAIN, DRIVE_TRAIN_DEFAULT, JOINT_DRIVE, check_offset, check_table
 from rcm_kin.dynamics.axis_friction import AxisFriction
-from rcm_kin.errors import RcmKinError, read_toml
+from rcm_kin.errors import ParameterFileError, RcmKinError, read_toml
 from rcm_kin.hardware import PWM_LIMIT
 
 DEFAULT_PARAMETERS = Path(__file__).resolve().parents[1] / "parameters" / "psm_drive.toml"
@@ -106,9 +106,10 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
         joints[joint] = JointDrive(**{n: values[n] for n in names if n in values}, pwm_limit=float(limit))
         legacy = values.get("pwm_limit", float(limit))
         if legacy != limit:
-            raise RcmKinError(f"{path}: [{joint}] pwm_limit = {legacy:g} differs from the firmware's {limit:g} "
-                              "counts (rcm_kin/hardware.py PWM_LIMIT); drive files no longer set it: remove the "
-                              "key (a simulation takes other limits through FirmwareSettings, --pwm-limit)")
+            raise ParameterFileError(f"{path}: [{joint}] pwm_limit = {legacy:g} differs from the firmware's {limit:g} "
+                                     "counts (rcm_kin/hardware.py PWM_LIMIT); drive files no longer set it: remove the "
+                                     "key (a simulation takes other limits through FirmwareSettings, `pwm_limit`)",
+                                     path=path, table=joint, key="pwm_limit", parameter="pwm_limit")
     offsets = {}
     if not isinstance(raw.get("gravity_offsets", {}), dict):
         raise RcmKinError(f"{path}: gravity_offsets must be a table [gravity_offsets] of 3-number lists (kg m)")

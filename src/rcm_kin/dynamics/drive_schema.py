@@ -29,10 +29,12 @@ class Range:
     def check(self, value, path: Path | str, table: str, key: str) -> float:
         """``value`` as a float, or an error naming the file, the table and the key."""
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ParameterFileError(f"{path}: [{table}] {key} must be a number ({self.unit}), got {value!r}"[:300])
+            raise ParameterFileError(f"{path}: [{table}] {key} must be a number ({self.unit}), got {value!r}"[:300],
+                                     path=path, table=table, key=key)
         value = float(value)
         if not math.isfinite(value) or value < self.lo or value > self.hi or (self.open_lo and value == self.lo):
-            raise ParameterFileError(f"{path}: [{table}] {key} = {value:.6g} is outside {self.text()}")
+            raise ParameterFileError(f"{path}: [{table}] {key} = {value:.6g} is outside {self.text()}",
+                                     path=path, table=table, key=key)
         return value
 
     def text(self) -> str:
@@ -72,15 +74,17 @@ def check_table(entry: dict, schema: dict[str, Range], path, table: str, default
     for key, value in entry.items():
         rule = schema.get(key, default)
         if rule is None:
-            raise ParameterFileError(f"{path}: [{table}] has no rule for {key}")
+            raise ParameterFileError(f"{path}: [{table}] has no rule for {key}", path=path, table=table, key=key)
         out[key] = rule.check(value, path, table, key)
     if "pwm_sign" in out and abs(out["pwm_sign"]) != 1.0:
-        raise ParameterFileError(f"{path}: [{table}] pwm_sign must be -1 or 1, got {out['pwm_sign']:g}")
+        raise ParameterFileError(f"{path}: [{table}] pwm_sign must be -1 or 1, got {out['pwm_sign']:g}", path=path,
+                                 table=table, key="pwm_sign")
     return out
 
 
 def check_offset(value, path, link: str) -> list[float]:
     """A ``[gravity_offsets]`` entry: 3 numbers in kg m."""
     if not isinstance(value, list) or len(value) != 3:
-        raise ParameterFileError(f"{path}: gravity_offsets.{link} must be 3 numbers (kg m)")
+        raise ParameterFileError(f"{path}: gravity_offsets.{link} must be 3 numbers (kg m)", path=path,
+                                 table="gravity_offsets", key=link)
     return [GRAVITY_OFFSET.check(v, path, "gravity_offsets", f"{link}[{i}]") for i, v in enumerate(value)]

@@ -36,7 +36,8 @@ period, all the limits one smooth constraint (the Kreisselmeier-Steinhauser enve
 sample's margins, which lies above the worst of them); the result is checked, and shrunk if
 needed, on the firmware's grid.
 
-The replay file and the stick-slip model's predicted errors: :mod:`rcm_kin.identification.replay`.
+The replay file: :func:`write_excitation`; the stick-slip model's predicted errors:
+:mod:`rcm_kin.identification.replay`.
 
 **Predicted standard errors**, two kinds:
 
@@ -51,6 +52,7 @@ The replay file and the stick-slip model's predicted errors: :mod:`rcm_kin.ident
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
@@ -62,6 +64,7 @@ from rcm_kin.identification.excitation_axis import (AxisModel, EQUATION_NOISE, J
                                                     PARAMETERS, PWM_FRACTION, STARTS, VELOCITY_LIMIT,
                                                     axis_model, optimise_axis)
 from rcm_kin.identification.fourier import Fourier
+from rcm_kin.identification.identify import base_model
 from rcm_kin.identification.replay import HOLD_POSE, JOINTS, stick_slip_errors
 
 UNITS = {"inertia": "kg m^2", "damping": "N m s/rad", "coulomb": "N m", "gravity_sin": "N m",
@@ -157,8 +160,8 @@ def check_request(duration: float, joints, harmonics: int) -> tuple[str, ...]:
         raise RcmKinError(f"the duration must be between {MIN_DURATION:g} and {MAX_DURATION:g} s per joint, "
                           f"got {duration:g}")
     if not 2 <= harmonics <= MAX_HARMONICS:
-        raise RcmKinError(f"--harmonics must be between 2 and {MAX_HARMONICS} (the start at rest takes two "
-                          f"coefficients), got {harmonics}")
+        raise RcmKinError(f"`harmonics` must be between 2 and {MAX_HARMONICS} (the start at rest takes two "
+                          f"coefficients), got {harmonics}", parameter="harmonics")
     joints = tuple(dict.fromkeys(joints))
     unknown = [j for j in joints if j not in JOINTS]
     if unknown or not joints:
@@ -174,8 +177,6 @@ def design_excitation(duration: float, joints=JOINTS, harmonics: int = HARMONICS
     periods of about :data:`PERIOD` s), ``harmonics`` harmonics, optimised from ``starts``
     random starts drawn with ``seed`` (see the module notes); a progress bar when ``progress``
     and the design takes more than 2 s."""
-    from rcm_kin.identification.identify import base_model
-
     joints = check_request(duration, joints, harmonics)
     params = params or load_drive_parameters()
     model = base_model(params)
@@ -205,7 +206,7 @@ def design_excitation(duration: float, joints=JOINTS, harmonics: int = HARMONICS
     worst = np.max(np.abs(np.concatenate(pwm)), axis=0) / PWM_LIMIT[:2]
     if np.any(worst > 1):   # a held joint's coupling torque (not seen by the optimisation) too large
         raise RcmKinError(f"the feedforward of the held {JOINTS[int(np.argmax(worst))]} exceeds its PWM limit; "
-                          "try fewer --harmonics")
+                          "try fewer `harmonics`", parameter="harmonics")
     time = np.arange(len(joints) * n + 1) * h
     return Excitation(period, duration, harmonics, results, time, np.r_[np.concatenate(setpoint), np.zeros((1, 2))],
                       np.r_[np.concatenate(pwm), rest[None]])
@@ -221,7 +222,8 @@ def fitted_to_limits(axis: AxisModel, fourier: Fourier, t: np.ndarray) -> Fourie
             return fourier
         scale = 1.0 - max(excess, 1e-4) - 1e-4
         fourier = replace(fourier, a=fourier.a * scale, b=fourier.b * scale)
-    raise RcmKinError(f"the {axis.joint}'s excitation does not fit its limits; try fewer --harmonics")
+    raise RcmKinError(f"the {axis.joint}'s excitation does not fit its limits; try fewer `harmonics`",
+                      parameter="harmonics")
 
 
 def _joint_result(axis: AxisModel, model, params: DriveParameters, fourier: Fourier, start: float, duration: float,
@@ -241,3 +243,33 @@ def _joint_result(axis: AxisModel, model, params: DriveParameters, fourier: Four
         axis.condition_number(*sine), axis.standard_errors(*motion, duration), axis.standard_errors(*sine, duration),
         stick_slip, baseline_stick_slip, rms, float(np.max(np.abs(q))), float(np.max(np.abs(qd))),
         float(np.max(np.abs(u[i]))))
+
+
+def write_excitation(excitation: Excitation, path: str | Path) -> Path:
+    """The replay CSV of ``excitation`` at ``path``: one header line and no comments, a row every
+    firmware period (:data:`rcm_kin.hardware.FIRMWARE_PERIOD`, 2.5 ms), in the telemetry format
+    (:func:`rcm_kin.identification.telemetry.load_telemetry` reads it back)::
+
+        __time                                    s, from 0
+        /psm_joint_telemetry/roll/position        deg, the setpoint (what perfect tracking would measure)
+        /psm_joint_telemetry/roll/velocity        counts, the feedforward PWM (hardware sign)
+        /psm_joint_telemetry/roll/effort          deg, the position setpoint
+        /psm_joint_telemetry/pitch/position       the same three for the pitch
+        /psm_joint_telemetry/pitch/velocity
+        /psm_joint_telemetry/pitch/effort
+
+    Both joints are always written; a joint not excited holds at 0. A last row closes the file at
+    rest. The insertion is not in the file: its firmware loop holds it."""
+    path = Path(path)
+    header = ["__time"] + [f"/psm_joint_telemetry/{j}/{c}" for j in JOINTS for c in ("position", "velocity", "effort")]
+    degrees = np.degrees(excitation.setpoint)
+    columns = [excitation.time]
+    for k in range(len(JOINTS)):
+        columns += [degrees[:, k], excitation.pwm[:, k], degrees[:, k]]
+    try:
+        np.savetxt(path, np.column_stack(columns), delimiter=",", header=",".join(header), comments="",
+                   fmt=["%.4f"] + ["%.6f", "%.3f", "%.6f"] * len(JOINTS))
+    except OSError as exc:
+        raise RcmKinError(f"cannot write {path}: {exc.strerror}") from None
+    return path
+

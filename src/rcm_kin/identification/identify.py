@@ -147,7 +147,7 @@ def predict_file(params: DriveParameters, path, joint: str) -> tuple[AxisLog, np
     clear error. Returns the record, the predicted angle (rad) and its check."""
     if joint not in params.drive_train:
         raise RcmKinError(f"{params.source} has no [drive_train.{joint}]: identify one first "
-                          "(rcm-kin identify psm LOGS --out FILE.toml) and pass it with --params")
+                          "(rcm-kin identify psm LOGS --out FILE.toml) and pass it with `params`", parameter="params")
     kind, reason = classify(load_telemetry(path), joint)
     if kind == "skipped":
         raise RcmKinError(f"{Path(path).name}: cannot predict the {joint}: {reason}")

@@ -85,8 +85,9 @@ def _log_files(folder: Path) -> list[Path]:
     for visited, (root, _, names) in enumerate(os.walk(folder), start=1):
         logs += sum(n.endswith((".csv", *BAG_SUFFIXES)) for n in names)
         if visited > MAX_FOLDERS or logs > MAX_LOGS:
+            requested, limit = (visited, MAX_FOLDERS) if visited > MAX_FOLDERS else (logs, MAX_LOGS)
             raise WorkLimitError(f"more than {MAX_FOLDERS} folders or {MAX_LOGS} logs below {folder}: "
-                                 "give the folder of the logs")
+                                 "give the folder of the logs", requested=requested, limit=limit)
     return telemetry_files(folder, "**/*")
 
 

@@ -1,19 +1,5 @@
-"""The excitation's replay: the CSV the firmware plays back, and what a log of it would show.
-
-CSV, one header line and no comments, a row every firmware period
-(:data:`rcm_kin.hardware.FIRMWARE_PERIOD`, 2.5 ms), in the telemetry format
-(:func:`rcm_kin.identification.telemetry.load_telemetry` reads it back):
-
-    __time                                    s, from 0
-    /psm_joint_telemetry/roll/position        deg, the setpoint (what perfect tracking would measure)
-    /psm_joint_telemetry/roll/velocity        counts, the feedforward PWM (hardware sign)
-    /psm_joint_telemetry/roll/effort          deg, the position setpoint
-    /psm_joint_telemetry/pitch/position       the same three for the pitch
-    /psm_joint_telemetry/pitch/velocity
-    /psm_joint_telemetry/pitch/effort
-
-Both joints are always written; a joint not excited holds at 0. A last row closes the file at
-rest. The insertion is not in the file: its firmware loop holds it.
+"""The excitation's replay: what a log of it would show (the CSV the firmware plays back is
+written by :func:`rcm_kin.identification.excitation.write_excitation`).
 
 The stick-slip model's predicted standard errors come from the log a replay would record,
 simulated on the shipped model: the firmware's PWM, the feedforward plus the thesis's P loop on
@@ -27,18 +13,12 @@ comparing designs; on real logs the model's own error dominates.
 
 from __future__ import annotations
 
-from pathlib import Path
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters
 from rcm_kin.dynamics.stick_slip import axis_plant, simulate_axis
-from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import ENCODER_COUNT, FIRMWARE_PERIOD, HOME_INSERTION, P_GAINS, PWM_LIMIT
-
-if TYPE_CHECKING:
-    from rcm_kin.identification.excitation import Excitation
+from rcm_kin.identification.drive_train import AxisLog, at_rest, predicted_standard_errors
 
 JOINTS = ("roll", "pitch")
 HOLD_POSE = np.array([0.0, 0.0, HOME_INSERTION])
@@ -51,8 +31,6 @@ def closed_loop_record(friction, plant, joint: str, setpoint: np.ndarray, feedfo
     (setpoint - angle)`` (the thesis's P gain, :data:`rcm_kin.hardware.P_GAINS`), saturated at
     :data:`PWM_LIMIT`. In :func:`predict_log`'s sample convention, so that it reproduces the
     record from the recorded PWM."""
-    from rcm_kin.identification.drive_train import at_rest
-
     i = DRIVEN.index(joint)
     plant, state = at_rest(friction, plant, setpoint[0], feedforward[0])
     angle, pwm = np.empty(setpoint.size), np.empty(setpoint.size)
@@ -69,28 +47,9 @@ def stick_slip_errors(model, params: DriveParameters, joint: str, setpoint: np.n
     """The shipped drive train's predicted standard errors from the log of the replay of
     ``setpoint`` (rad) with ``feedforward`` (counts) (:func:`closed_loop_record`), its angle
     measured with the encoder's quantisation noise; and the recorded angle (rad)."""
-    from rcm_kin.identification.drive_train import AxisLog, predicted_standard_errors
-
     friction = params.drive_train[joint]
     plant = axis_plant(model, joint, HOLD_POSE)
     angle, pwm = closed_loop_record(friction, plant, joint, setpoint, feedforward)
     log = AxisLog(f"excitation ({joint})", joint, FIRMWARE_PERIOD, pwm, angle, HOLD_POSE.copy())
     noise = np.radians(ENCODER_COUNT[DRIVEN.index(joint)]) / np.sqrt(12)
     return predicted_standard_errors(friction, [plant], [log], noise), angle
-
-
-def write_excitation(excitation: Excitation, path: str | Path) -> Path:
-    """The replay CSV (format in the module notes) at ``path``."""
-    path = Path(path)
-    header = ["__time"] + [f"/psm_joint_telemetry/{j}/{c}" for j in JOINTS for c in ("position", "velocity", "effort")]
-    degrees = np.degrees(excitation.setpoint)
-    columns = [excitation.time]
-    for k in range(len(JOINTS)):
-        columns += [degrees[:, k], excitation.pwm[:, k], degrees[:, k]]
-    try:
-        np.savetxt(path, np.column_stack(columns), delimiter=",", header=",".join(header), comments="",
-                   fmt=["%.4f"] + ["%.6f", "%.3f", "%.6f"] * len(JOINTS))
-    except OSError as exc:
-        raise RcmKinError(f"cannot write {path}: {exc.strerror}") from None
-    return path
-

@@ -12,12 +12,13 @@ reader leaves out cut-off rows; a non-finite value is an error naming the messag
 
 The topic is :data:`DEFAULT_TOPIC` unless a caller sets another for a block of code with
 :func:`telemetry_topic` (the CLI's ``--topic``), so every function that reads logs through
-:func:`rcm_kin.identification.telemetry.load_telemetry` reads bags unchanged.
+:func:`rcm_kin.identification.telemetry.load_telemetry` reads bags unchanged. This module reads
+the messages (:func:`read_joint_states`); :func:`rcm_kin.identification.telemetry.load_bag`
+makes the telemetry log of them.
 """
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -25,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import LogDataError, RcmKinError
+from rcm_kin.errors import LogDataError, LogDataWarning, RcmKinError, warn
 
 DEFAULT_TOPIC = "/psm_joint_telemetry"
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -79,7 +80,7 @@ def read_joint_states(path: str | Path, topic: str | None = None) -> tuple[np.nd
             if not connections or any(c.msgtype != JOINT_STATE for c in connections):
                 found = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})
                 raise RcmKinError(f"{path}: no {JOINT_STATE} topic {topic} (the bag has: "
-                                  f"{', '.join(found) or 'none'}); choose one with --topic")
+                                  f"{', '.join(found) or 'none'}); choose one with `topic`", parameter="topic")
             for connection, timestamp, raw in reader.messages(connections):
                 msg = typestore.deserialize_cdr(raw, connection.msgtype)
                 rows.append({(name, field): float(values[i])
@@ -105,30 +106,19 @@ def _columns(path: Path, rows: list[dict], stamps: list[str], received: list[int
     if sum(complete) < 2:
         raise RcmKinError(f"{path}: not a telemetry log (fewer than 2 messages with every field of every joint)")
     if not all(complete):
-        warnings.warn(f"{path}: {len(rows) - sum(complete)} messages missing a joint's field left out "
-                      f"(of {len(rows)})", stacklevel=2)
+        warn(f"{path}: {len(rows) - sum(complete)} messages missing a joint's field left out (of {len(rows)})",
+             LogDataWarning)
     data = {k: np.array([row[k] for row, ok in zip(rows, complete) if ok], dtype=float) for k in keys}
     for key, values in data.items():
         bad = np.flatnonzero(~np.isfinite(values))
         if bad.size:
             raise LogDataError(f"{path}: {bad.size} messages with a non-finite {key[0]} {key[1]}, the first the "
                                f"{bad[0] + 1}th complete one; clean the bag (messages are not dropped: the gap "
-                               "would be read as dynamics)")
+                               "would be read as dynamics)", path=path, row=int(bad[0]) + 1,
+                               column=f"{key[0]}/{key[1]}")
     # the stamp as the decimal number of seconds it is (as the CSV export writes it)
     t = np.array([float(s) for s, ok in zip(stamps, complete) if ok])
     if not np.any(t):
         ns = np.array([r for r, ok in zip(received, complete) if ok], dtype=np.int64)
         return (ns - ns[0]) * 1e-9, data
     return t - t[0], data
-
-
-def load_bag(path: str | Path, topic: str | None = None):
-    """A :class:`~rcm_kin.identification.telemetry.TelemetryLog` from a bag."""
-    from rcm_kin.identification.telemetry import JOINTS, TelemetryLog
-
-    t, data = read_joint_states(path, topic)
-    pick = lambda field: {j: data[(j, field)] for j in JOINTS if (j, field) in data}  # noqa: E731
-    position, pwm = pick("position"), pick("velocity")
-    if not position or not pwm:
-        raise RcmKinError(f"{path}: not a telemetry log (no position and velocity of {', '.join(JOINTS)})")
-    return TelemetryLog(Path(path), t, position, pwm, pick("effort"))

@@ -10,14 +10,13 @@ same telemetry (``.mcap``, ``.db3``) are read by :mod:`rcm_kin.identification.ro
 from __future__ import annotations
 
 import csv
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import LogDataError, RcmKinError
-from rcm_kin.identification.rosbag import BAG_SUFFIXES, is_bag, load_bag
+from rcm_kin.errors import LogDataError, LogDataWarning, RcmKinError, warn
+from rcm_kin.identification.rosbag import BAG_SUFFIXES, is_bag, read_joint_states
 
 JOINTS = ("roll", "pitch", "insertion")
 _TIME_COLUMNS = ("/psm_joint_telemetry/header/stamp", "__time", "time")
@@ -69,8 +68,8 @@ def load_telemetry(path: str | Path) -> TelemetryLog:
         raise RcmKinError(f"{path}: not a telemetry log (no time column: expected one of {', '.join(_TIME_COLUMNS)})")
     complete = [r for r in rows[1:] if len(r) == len(header)]
     if len(complete) < len(rows) - 1:       # a recording cut off mid-row, typically its last line
-        warnings.warn(f"{path}: {len(rows) - 1 - len(complete)} rows with a wrong number of fields left out "
-                      f"(of {len(rows) - 1})", stacklevel=2)
+        warn(f"{path}: {len(rows) - 1 - len(complete)} rows with a wrong number of fields left out "
+             f"(of {len(rows) - 1})", LogDataWarning)
     try:
         data = np.array([[float(x) if x.strip() else np.nan for x in r] for r in complete])
     except ValueError:
@@ -84,13 +83,25 @@ def load_telemetry(path: str | Path) -> TelemetryLog:
         row, col = np.argwhere(bad)[0]
         raise LogDataError(f"{path}: {np.count_nonzero(np.any(bad, axis=1))} rows with a missing or non-finite value, "
                           f"the first in data row {row + 1}, column '{header[used[col]]}'; clean the log (rows are "
-                          "not dropped: the gap would be read as dynamics)")
+                          "not dropped: the gap would be read as dynamics)", path=path, row=int(row) + 1,
+                          column=header[used[col]])
     pick = lambda q: {j: data[:, columns[(j, q)]] for j in JOINTS if columns[(j, q)] is not None}  # noqa: E731
     position, pwm = pick("position"), pick("velocity")
     if not position or not pwm:
         raise RcmKinError(f"{path}: not a telemetry log (no '<joint>/position' and '<joint>/velocity' columns)")
     t = data[:, time_col]
     return TelemetryLog(path, t - t[0], position, pwm, pick("effort"))
+
+
+def load_bag(path: str | Path, topic: str | None = None) -> TelemetryLog:
+    """A :class:`TelemetryLog` from a ROS 2 bag (:func:`rcm_kin.identification.rosbag.read_joint_states`
+    of ``topic``, default the current :func:`~rcm_kin.identification.rosbag.telemetry_topic`)."""
+    t, data = read_joint_states(path, topic)
+    pick = lambda field: {j: data[(j, field)] for j in JOINTS if (j, field) in data}  # noqa: E731
+    position, pwm = pick("position"), pick("velocity")
+    if not position or not pwm:
+        raise RcmKinError(f"{path}: not a telemetry log (no position and velocity of {', '.join(JOINTS)})")
+    return TelemetryLog(Path(path), t, position, pwm, pick("effort"))
 
 
 def telemetry_files(folder: str | Path, pattern: str = "*") -> list[Path]:

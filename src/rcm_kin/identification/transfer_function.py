@@ -205,5 +205,6 @@ def fit_transfer_function(u, y, period: float, poles: int, zeros: int | None = N
     except np.linalg.LinAlgError:                 # a model with non-finite coefficients: diverged
         y_fit = np.full(Y.shape, np.inf)
     if not np.all(np.isfinite(y_fit)) or np.any(np.abs(y_fit) >= 1e6):
-        raise RcmKinError("the transfer-function fit diverged (try another order or a shorter --segment)")
+        raise RcmKinError("the transfer-function fit diverged (try another order or a shorter `segment`)",
+                          parameter="segment")
     return TransferFunctionFit(num, den, fit_percent(Y.ravel(), y_fit.ravel()), period, segment, y_fit.ravel())

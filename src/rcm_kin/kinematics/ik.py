@@ -42,7 +42,7 @@ def inverse_kinematics(robot, position, rpy=None) -> IKSolution:
         q_full, orientation_error = result.q, result.orientation_error
     elif robot.name == "mtm":
         if rpy is not None:
-            raise RcmKinError("--rpy is for the PSM tool; the MTM IK places its wrist centre")
+            raise RcmKinError("`rpy` is for the PSM tool; the MTM IK places its wrist centre", parameter="rpy")
         frame, joints = "wrist_center", MTM_ARM
         q_full = solve_ik(robot, frame, position, joints=joints).q
     else:

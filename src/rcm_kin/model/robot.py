@@ -133,14 +133,17 @@ class Robot:
         return np.concatenate([q, np.zeros(self.nq - q.size)])
 
     def check_limits(self, q, tol: float = 1e-9) -> np.ndarray:
-        """``q`` (actuated, rad or m) unchanged, or a clear error naming every joint outside its limits.
+        """``q`` (actuated, rad or m) unchanged, or a clear error naming every joint outside its limits
+        (a :class:`~rcm_kin.errors.JointLimitError` carrying their names, values and limits).
         The one joint-limit policy of rcm_kin: poses outside the limits are refused, not computed."""
         q = np.asarray(q, dtype=float)
         outside = (q < self.lower - tol) | (q > self.upper + tol)
         if np.any(outside):
             shown = lambda i, x: (f"{np.degrees(x):.6g} deg" if self.joint_kind(self.actuated[i]) == "revolute"  # noqa: E731
                                   else f"{x:.6g} m")
+            bad = np.flatnonzero(outside)
             raise JointLimitError("outside the joint limits: " + "; ".join(
                 f"{self.actuated[i]} {shown(i, q[i])} not in [{shown(i, self.lower[i])}, {shown(i, self.upper[i])}]"
-                for i in np.flatnonzero(outside)))
+                for i in bad), joints=tuple(self.actuated[i] for i in bad), values=q[bad].copy(),
+                lower=np.asarray(self.lower)[bad].copy(), upper=np.asarray(self.upper)[bad].copy())
         return q

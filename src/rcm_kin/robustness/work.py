@@ -32,11 +32,12 @@ def controller_periods(experiment: str, duration: float | None) -> int:
     return experiment_reference(experiment, FirmwareSettings().period, duration).time.size
 
 
-def check_periods(total: int, what: str, fewer: str) -> None:
-    """Refuse ``total`` controller periods above :data:`MAX_PERIODS`."""
+def check_periods(total: int, what: str, fewer: str, parameter: str | tuple[str, ...] | None = None) -> None:
+    """Refuse ``total`` controller periods above :data:`MAX_PERIODS` (``fewer`` says what to ask
+    for instead, naming ``parameter``)."""
     if total > MAX_PERIODS:
         raise WorkLimitError(f"{what} is {total:,} controller periods to simulate; the limit is {MAX_PERIODS:,}: "
-                             f"{fewer}")
+                             f"{fewer}", requested=total, limit=MAX_PERIODS, parameter=parameter)
 
 
 def check_robustness(study: Study, samples: int) -> None:
@@ -48,14 +49,14 @@ def check_robustness(study: Study, samples: int) -> None:
                           f"duration {reference.time[-1]:g} s")
     periods, controllers = reference.time.size, len(study.controllers)
     check_periods(samples * controllers * periods, f"{samples:,} samples x {controllers} controllers x {periods:,} "
-                  "periods", "fewer samples or controllers, or a shorter --duration")
+                  "periods", "fewer samples or controllers, or a shorter `duration`", "duration")
 
 
 def check_weights_sweep(error_budgets: int, pwm_budgets: int, duration: float | None) -> None:
     """Refuse a weights sweep over the simulator's per-run limit or :data:`MAX_PERIODS` in all."""
     periods = controller_periods("sine", duration)
     check_periods(error_budgets * pwm_budgets * periods, f"{error_budgets} x {pwm_budgets} budgets x {periods:,} "
-                  "periods", "fewer budgets or a shorter --duration")
+                  "periods", "fewer budgets or a shorter `duration`", "duration")
 
 
 def check_counterweight_sweep(main_masses: int, dpm_masses: int, points: int) -> None:
@@ -63,4 +64,5 @@ def check_counterweight_sweep(main_masses: int, dpm_masses: int, points: int) ->
     poses = main_masses * dpm_masses * points**2
     if poses > MAX_POSES:
         raise WorkLimitError(f"{main_masses} x {dpm_masses} masses x {points}^2 points is {poses:,} poses; the limit "
-                             f"is {MAX_POSES:,}: fewer masses or --points")
+                             f"is {MAX_POSES:,}: fewer masses or `points`", requested=poses, limit=MAX_POSES,
+                             parameter="points")

@@ -143,10 +143,12 @@ class BarrierProgram:
         for label, box in (("X", self.X), ("X0", self.X0), ("Xu", self.Xu)):
             if not np.all(np.isfinite([*box.lower, *box.upper])):
                 raise RcmKinError(f"program '{self.name}': the set {label} has a non-finite bound "
-                                  f"({list(box.lower)} to {list(box.upper)} m); check --delta, --error-bound, --r-max")
+                                  f"({list(box.lower)} to {list(box.upper)} m); check `delta`, `error_bound`, `r_max`",
+                                  parameter=("delta", "error_bound", "r_max"))
             if not all(lo < hi for lo, hi in zip(box.lower, box.upper)):
                 raise RcmKinError(f"program '{self.name}': the set {label} is empty "
-                                  f"({list(box.lower)} to {list(box.upper)} m); check --delta, --error-bound, --r-max")
+                                  f"({list(box.lower)} to {list(box.upper)} m); check `delta`, `error_bound`, `r_max`",
+                                  parameter=("delta", "error_bound", "r_max"))
             if not all(X_lo <= lo and hi <= X_hi for lo, hi, X_lo, X_hi in
                        zip(box.lower, box.upper, self.X.lower, self.X.upper)):
                 raise RcmKinError(f"program '{self.name}': the set {label} leaves the considered set X")

@@ -49,7 +49,7 @@ def check_map_size(poses: int) -> None:
     if poses > MAX_POSES:
         raise WorkLimitError(f"a map of {poses:,} poses is beyond the {MAX_POSES:,} (1001 x 1001) this command is "
                              f"measured for (about {MAX_POSES * BYTES_PER_POSE / 1e6:.0f} MB at the limit): use fewer "
-                             "points per axis")
+                             "points per axis", requested=poses, limit=MAX_POSES)
 
 
 @dataclass(frozen=True)

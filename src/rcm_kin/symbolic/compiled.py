@@ -14,8 +14,8 @@ function to rounding (the tests hold them to 1e-12). Mapping a compiled function
 bound buffers, without CasADi matrices in between. Before generating C, an SX function's common
 subexpressions are merged (``casadi.cse``: the same operations on the same values, fewer of them).
 
-Without a C compiler the interpreted function is returned and one line on stderr says so (once
-per compiler setting and process). :func:`single_call` evaluates one point through CasADi's
+Without a C compiler the interpreted function is returned and a
+:class:`~rcm_kin.errors.CompilerFallbackWarning` says so (once per compiler setting and process). :func:`single_call` evaluates one point through CasADi's
 bound buffers (``Function.buffer``), about 1 us of overhead instead of 20-30 us for a call with
 NumPy arguments.
 """
@@ -30,7 +30,6 @@ import platform
 import shlex
 import shutil
 import subprocess
-import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -38,7 +37,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import CompilerFallbackWarning, RcmKinError, warn
 
 COMPILE_FLAGS = ("-O2", "-fPIC", "-shared")
 CACHE_LIBRARIES = 256     # compiled libraries kept; beyond it the least recently used go (robustness
@@ -73,7 +72,7 @@ def function_key(fn: ca.Function, command: list[str]) -> str:
 
 @functools.cache
 def _available(compiler: str) -> bool:
-    """Whether ``compiler`` runs; if not, say once on stderr that functions run interpreted."""
+    """Whether ``compiler`` runs; if not, warn once that functions run interpreted."""
     if shutil.which(compiler) is not None:
         return True
     _warn(f"no C compiler '{compiler}' found (set CC)")
@@ -82,13 +81,13 @@ def _available(compiler: str) -> bool:
 
 @functools.cache
 def _warn(reason: str) -> None:
-    """One line on stderr (once per reason and process): functions run interpreted."""
-    print(f"warning: {reason}: CasADi functions run interpreted, slower", file=sys.stderr)
+    """A :class:`~rcm_kin.errors.CompilerFallbackWarning` (once per reason and process): functions run interpreted."""
+    warn(f"{reason}: CasADi functions run interpreted, slower", CompilerFallbackWarning)
 
 
 def compiled(fn: ca.Function) -> ca.Function:
     """``fn`` compiled to C and loaded (from the cache when built before), or ``fn`` itself when
-    no C compiler is found or the cache folder cannot be written (one line on stderr). Raises
+    no C compiler is found or the cache folder cannot be written (a :class:`~rcm_kin.errors.CompilerFallbackWarning`). Raises
     :class:`RcmKinError` when the compiler fails on the code or the library does not load."""
     found = loaded_library(fn)
     return fn if found is None else _load(fn.name(), found[0])
@@ -129,7 +128,7 @@ def compiled_library(fn: ca.Function) -> Path | None:
     """The cached shared library of ``fn`` (built first if absent), which exports CasADi's C
     interface under ``fn.name()``: ``int name(const double** arg, double** res, long long* iw,
     double* w, int mem)`` and ``name_work`` for the sizes; None when no C compiler is found or
-    the cache folder cannot be written (one line on stderr, as :func:`compiled`)."""
+    the cache folder cannot be written (a warning, as :func:`compiled`)."""
     command = compiler_command()
     if not command or not _available(command[0]):
         return None

@@ -75,7 +75,7 @@ def screenshot(page: str | Path, png: str | Path, size: tuple[int, int] = (800, 
     browser = find_browser()
     if browser is None:
         raise RcmKinError("no Chromium to render the page: install it (Debian: apt-get install chromium) "
-                          "or use --renderer matplotlib")
+                          "or use the matplotlib `renderer`", parameter="renderer")
     page, png = Path(page).resolve(), Path(png).resolve()
     with tempfile.TemporaryDirectory(prefix="rcm-kin-chromium-") as folder:
         shot, profile = Path(folder) / "screenshot.png", Path(folder) / "profile"
