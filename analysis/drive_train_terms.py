@@ -19,12 +19,11 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from rcm_kin.identification.drive_train import (check_log, fit_friction, leave_one_out, predict_log,  # noqa: E402
-                                                search_for)
+from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
+from rcm_kin.identification.drive_train import check_log, fit_friction, leave_one_out, predict_log, search_for  # noqa: E402
 from rcm_kin.identification.identify import base_model, joint_records  # noqa: E402
 from rcm_kin.identification.log_catalog import catalog  # noqa: E402
 from rcm_kin.identification.transfer_function import fit_transfer_function, simulate_transfer_function  # noqa: E402
-from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
 
 VARIANTS = [(), ("stiction",), ("presliding",), ("two_mass",), ("presliding", "stiction"),
             ("presliding", "two_mass")]
@@ -67,7 +66,8 @@ def main() -> None:
     names = [g.name for g in logs]
     with open(args.out, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["variant", "in_sample_mean_fit"] + [f"{n} cv_fit" for n in names] + [f"{n} travel_err" for n in names])
+        w.writerow(["variant", "in_sample_mean_fit"] + [f"{n} cv_fit" for n in names]
+                   + [f"{n} travel_err" for n in names])
         for r in rows:
             w.writerow([r["variant"], r["in_sample_mean"]] + [f"{r[n][0]:.1f}" for n in names]
                        + [f"{100 * r[n][1]:.0f}%" for n in names])

@@ -1,4 +1,4 @@
-"""The robustness table of the note: ``rcm-kin robustness --json`` output as a Markdown table.
+r"""The robustness table of the note: ``rcm-kin robustness --json`` output as a Markdown table.
 
     rcm-kin identify psm ../shared/data --out /tmp/identified.toml --cv --json > identify.json
     rcm-kin robustness psm --controller p --controller pid --controller lqr-fixed --controller scheduled \\

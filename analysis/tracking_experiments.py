@@ -15,14 +15,14 @@ import csv
 from dataclasses import replace
 from pathlib import Path
 
-from rcm_kin.thesis import SINE_TRACKING_ERROR_DEG
 from rcm_kin.dynamics.drive import load_drive_parameters
-from rcm_kin.plotting import error_comparison_figure, greybox_figure, tracking_figure
 from rcm_kin.identification.greybox import fit_greybox, step_logs, write_greybox_parameters
+from rcm_kin.plotting import error_comparison_figure, greybox_figure, tracking_figure
 from rcm_kin.simulation.controllers import CONTROLLERS, make_controller
 from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule, start_hold
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import simulate, tracking_metrics
+from rcm_kin.thesis import SINE_TRACKING_ERROR_DEG
 
 FIRMWARE_VELOCITY = "scheduled, firmware v"    # the thesis law: Kd on the measured velocity
 
@@ -53,7 +53,8 @@ def run_all(params, trajectory, label: str, out: Path) -> list[dict]:
                              "axis": axis, **{k: round(v, 4) for k, v in vars(m).items()},
                              "max_error_after_0.5s": round(settled[axis].max_error_deg, 4),
                              "mean_error_after_0.5s": round(settled[axis].mean_error_deg, 4),
-                             "thesis_max_deg": thesis[0] if thesis else "", "thesis_mean_deg": thesis[1] if thesis else ""})
+                             "thesis_max_deg": thesis[0] if thesis else "",
+                             "thesis_mean_deg": thesis[1] if thesis else ""})
         pair = [r for r in results if r.controller in ("p", "scheduled-gravity")]
         error_comparison_figure(pair, out / f"{label}_{experiment}_p_vs_scheduled.png", title=f"{experiment}:")
     return rows
@@ -81,7 +82,8 @@ def main() -> None:
         writer.writerows(rows)
     for r in rows:
         if r["experiment"] == "sine" or r["controller"] in ("p", "scheduled-gravity"):
-            print(f"{r['parameters']:8} {r['experiment']:6} {r['controller']:22} {r['axis']:5} max {r['max_error_deg']:.3f} "
+            print(f"{r['parameters']:8} {r['experiment']:6} {r['controller']:22} {r['axis']:5} "
+                  f"max {r['max_error_deg']:.3f} "
                   f"mean {r['mean_error_deg']:.3f} (after 0.5 s {r['max_error_after_0.5s']:.3f}/"
                   f"{r['mean_error_after_0.5s']:.3f}) RMS {r['rms_error_deg']:.3f} deg, PWM RMS {r['rms_pwm']:.1f}, "
                   f"sat {r['saturation_s']:.3f} s  thesis {r['thesis_max_deg']}/{r['thesis_mean_deg']}")

@@ -56,7 +56,8 @@ int main(void) {
 
 def c_time_per_call(folder: Path, compiler: str) -> float:
     (folder / "timing.c").write_text(TIMING_MAIN)
-    subprocess.run([compiler, "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", "-O2", "-D_POSIX_C_SOURCE=199309L",
+    subprocess.run([compiler, "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", "-O2",
+                    "-D_POSIX_C_SOURCE=199309L",
                     str(folder / "timing.c"), str(folder / "rcm_psm_model.c"), "-o", str(folder / "timing"), "-lm"],
                    check=True)
     best = min(float(subprocess.run([str(folder / "timing")], capture_output=True, text=True, check=True)

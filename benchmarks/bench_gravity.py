@@ -46,7 +46,6 @@ from rcm_kin.model.gravity import gravity_batch  # noqa: E402
 from rcm_kin.statics.gravity_map import driven_gravity, gravity_map  # noqa: E402
 
 
-
 def poses(n: int) -> np.ndarray:
     grid = np.radians(np.linspace(-30, 30, n))
     P, R = np.meshgrid(grid, grid, indexing="ij")

@@ -8,14 +8,15 @@ under 2 minutes on 2 cores. ``identify`` is single-threaded (differential evolut
 workers); the model evaluations it makes are counted and timed by wrapping
 ``drive_train.residuals`` (a counter, negligible next to a 3 ms evaluation).
 
-One model evaluation is ``residuals`` (``identification/drive_train.py``): the six step logs
-simulated by the numba stick-slip model (1 ms PWM samples, 4 substeps of 0.25 ms each) with the
-shipped ``[drive_train.roll]``. Beside it, for the same simulated time in Python loops, all three axes, at the logs' 1 ms (same
-step, 0.25 ms) and at the firmware's 2.5 ms: the plain library call a user would write
-(Pinocchio's ``crba`` and ``nonLinearEffects`` on the reduced closed chain, semi-implicit Euler,
-4 substeps; ``bench_simulation.pinocchio_period``) and our smooth model's
-``period_map(driven_dynamics(psm, params).forward, period)`` (CasADi RK4, 4 substeps). Without the data the identify timing is skipped and the model
-evaluation runs on synthetic steps at the same operating points.
+One model evaluation is ``residuals`` (``identification/drive_train.py``): the six step logs simulated
+by the numba stick-slip model (1 ms PWM samples, 4 substeps of 0.25 ms each) with the shipped
+``[drive_train.roll]``. Beside it, for the same simulated time in Python loops, all three axes, at the
+logs' 1 ms (same step, 0.25 ms) and at the firmware's 2.5 ms: the plain library call a user would write
+(Pinocchio's ``crba`` and ``nonLinearEffects`` on the reduced closed chain, semi-implicit Euler, 4
+substeps; ``bench_simulation.pinocchio_period``) and our smooth model's
+``period_map(driven_dynamics(psm, params).forward, period)`` (CasADi RK4, 4 substeps). Without the data
+the identify timing is skipped and the model evaluation runs on synthetic steps at the same operating
+points.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """FK and IK cost per call on the bundled robots.
 
-    python benchmarks/bench_kinematics.py
+python benchmarks/bench_kinematics.py
 """
 
 from __future__ import annotations

@@ -27,13 +27,11 @@ import pinocchio as pin  # noqa: E402
 from common import best_of, report  # noqa: E402
 
 from rcm_kin import load_robot  # noqa: E402
-from rcm_kin.model.reduced import tree_configuration  # noqa: E402
-from rcm_kin.control.linearization import (_armatured_tree, equilibrium, linearize_grid,  # noqa: E402
-                                           linearize_pinocchio)
+from rcm_kin.control.linearization import _armatured_tree, equilibrium, linearize_grid, linearize_pinocchio  # noqa: E402
 from rcm_kin.dynamics.drive import DRIVEN, load_drive_parameters  # noqa: E402
 from rcm_kin.dynamics.state_space import driven_dynamics  # noqa: E402
+from rcm_kin.model.reduced import tree_configuration  # noqa: E402
 from rcm_kin.symbolic.compiled import map_points  # noqa: E402
-
 
 
 def main() -> None:

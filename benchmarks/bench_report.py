@@ -59,8 +59,8 @@ def end_to_end(out: Path) -> tuple[float, float]:
 
 def pieces(out: Path) -> None:
     """Each piece's wall time in the report's pool, by worker."""
-    from rcm_kin.report import report_jobs, run_jobs
     from rcm_kin.parallel import machine_workers
+    from rcm_kin.report import report_jobs, run_jobs
 
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)

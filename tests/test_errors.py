@@ -17,8 +17,17 @@ import numpy as np
 import pytest
 
 import rcm_kin
-from rcm_kin.errors import (CompilerFallbackWarning, JointLimitError, LogDataError, LogDataWarning,
-                            NonFiniteResultError, ParameterFileError, RcmKinError, RcmKinWarning, WorkLimitError)
+from rcm_kin.errors import (
+    CompilerFallbackWarning,
+    JointLimitError,
+    LogDataError,
+    LogDataWarning,
+    NonFiniteResultError,
+    ParameterFileError,
+    RcmKinError,
+    RcmKinWarning,
+    WorkLimitError,
+)
 
 comp = importlib.import_module("rcm_kin.symbolic.compiled")   # the module (the package's ``compiled`` is the function)
 SOURCE = Path(rcm_kin.__file__).parent
@@ -100,7 +109,8 @@ def test_joint_limit_error_carries_joints_values_and_limits(psm):
 
 
 def test_work_limit_errors_carry_what_was_asked_and_the_limit():
-    from rcm_kin.robustness.work import MAX_POSES as SWEEP_POSES, check_counterweight_sweep
+    from rcm_kin.robustness.work import MAX_POSES as SWEEP_POSES
+    from rcm_kin.robustness.work import check_counterweight_sweep
     from rcm_kin.statics.gravity_map import MAX_POSES, check_map_size
 
     check_map_size(MAX_POSES)

@@ -112,8 +112,10 @@ DAVINCI = [
     ("instrument_roll", "instrument_slide", 0.052, 0.0, 0.0, (("z", np.pi / 2), ("x", np.pi)), "revolute", 3,
      (-1.5 * np.pi, 1.5 * np.pi)),
     ("instrument_pitch", "instrument_roll", 0.0, 0.0, 0.177, (), "revolute", -1, (-1.5, 1.5)),
-    ("jaw_left", "instrument_pitch", 0.0, 0.0, 0.009, (("y", np.pi / 2), ("x", np.pi / 2)), "revolute", -3, (-1.8, 1.8)),
-    ("jaw_right", "instrument_pitch", 0.0, 0.0, 0.009, (("y", np.pi / 2), ("x", np.pi / 2)), "revolute", 3, (-1.8, 1.8)),
+    ("jaw_left", "instrument_pitch", 0.0, 0.0, 0.009, (("y", np.pi / 2), ("x", np.pi / 2)), "revolute", -3,
+     (-1.8, 1.8)),
+    ("jaw_right", "instrument_pitch", 0.0, 0.0, 0.009, (("y", np.pi / 2), ("x", np.pi / 2)), "revolute", 3,
+     (-1.8, 1.8)),
 ]
 # Table C.7 (reduced chain, URDF convention [Rz(yaw) Ry(pitch) Rx(roll), (a, b, d)] [Rz(q) or
 # Tz(q)]): (name, parent, a, b, d, roll, pitch, kind, limits)

@@ -8,8 +8,8 @@ import sys
 
 import numpy as np
 import pytest
-
 from oracles.dh_reference import psm_frames
+
 from rcm_kin.cli import main
 
 

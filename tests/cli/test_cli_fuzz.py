@@ -384,7 +384,8 @@ COMMANDS = ["info", "fk", "ik", "gravity", "torque-map", "calibrate", "dynamics"
 def test_fuzz_command(command, workspace, no_server):
     spec = specs(workspace)[command]
 
-    @settings(max_examples=max(1, round(EXAMPLES * spec.get("share", 1))), derandomize=True, deadline=None, database=None, print_blob=False,
+    @settings(max_examples=max(1, round(EXAMPLES * spec.get("share", 1))), derandomize=True, deadline=None,
+              database=None, print_blob=False,
               suppress_health_check=list(HealthCheck))
     @given(argv_of(spec))
     def case(argv):

@@ -15,11 +15,11 @@ import pytest
 
 import rcm_kin.cli
 from rcm_kin import RcmKinError
-from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.identification.transfer_function import polynomial_text
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.kinematics.ik import inverse_kinematics
 from rcm_kin.model import joint_table, load_robot
+from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.safety.sos import poly_eval, poly_text
 from rcm_kin.statics.gravity_map import holding_effort
 

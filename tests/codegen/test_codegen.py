@@ -35,7 +35,7 @@ def build(sources, folder, name="model.so"):
 
 
 def c_call(function, q):
-    """pwm (3,), dpwm_dq (3, 3) from the C function through ctypes."""
+    """Pwm (3,), dpwm_dq (3, 3) from the C function through ctypes."""
     q = np.ascontiguousarray(q, dtype=float)
     pwm, grad = np.zeros(3), np.zeros(9)
     pointer = ctypes.POINTER(ctypes.c_double)
@@ -150,7 +150,8 @@ def test_export_cli(capsys, tmp_path):
 def test_export_follows_the_parameter_file(tmp_path, psm, params):
     """A different drive gain scales the exported constants: the C is built from the given TOML."""
     from rcm_kin.dynamics.drive import with_joint, write_parameters
-    changed = write_parameters(with_joint(params, "roll", resistance=2 * params["roll"].resistance), tmp_path / "p.toml")
+    changed = write_parameters(with_joint(params, "roll", resistance=2 * params["roll"].resistance),
+                               tmp_path / "p.toml")
     assert load_drive_parameters(changed)["roll"].resistance == 2 * params["roll"].resistance
     main(["export", "psm", "--c", str(tmp_path / "a")])
     main(["export", "psm", "--c", str(tmp_path / "b"), "--params", str(changed)])

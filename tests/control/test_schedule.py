@@ -13,9 +13,19 @@ from scipy.linalg import solve_continuous_are
 from rcm_kin import RcmKinError
 from rcm_kin.cli import main
 from rcm_kin.codegen.firmware_export import header_text
-from rcm_kin.control.gain_schedule import (THESIS_PITCH_DEG, THESIS_ROLL_DEG, axis_model, bilinear,
-                                           closed_loop_matrix, lqr_axis, parse_grid, pitch_gains, roll_gains,
-                                           schedule_gains, scheduled_gains)
+from rcm_kin.control.gain_schedule import (
+    THESIS_PITCH_DEG,
+    THESIS_ROLL_DEG,
+    axis_model,
+    bilinear,
+    closed_loop_matrix,
+    lqr_axis,
+    parse_grid,
+    pitch_gains,
+    roll_gains,
+    schedule_gains,
+    scheduled_gains,
+)
 from rcm_kin.control.linearization import linearize
 from rcm_kin.control.stability import firmware_loop_matrix, stability_survey
 from rcm_kin.control.weights import Weights
@@ -220,6 +230,7 @@ def test_cli_schedule_writes_the_contract_files(tmp_path, capsys):
 def test_thesis_gains_on_the_thesis_roll_model_by_python_control():
     """The closed-loop poles of the firmware law on G(s), against python-control's feedback."""
     import control
+
     from rcm_kin.control.thesis_comparison import THESIS_K_ROLL, THESIS_ROLL_TF, thesis_roll_closed_loop
     kp, kd = THESIS_K_ROLL[1, 1]
     # u = -(Kp (r - y) + Kd ydot) = (Kp - Kd s) y - Kp r: positive feedback through Kp - Kd s

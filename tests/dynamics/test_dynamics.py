@@ -8,12 +8,17 @@ import pinocchio as pin
 import pytest
 
 from rcm_kin import RcmKinError
-from rcm_kin.model.reduced import reduced_mass_matrix, relation_jacobian, tree_configuration
-from rcm_kin.control.linearization import (equilibrium, linearize, linearize_finite_differences, linearize_grid,
-                                           linearize_pinocchio)
+from rcm_kin.control.linearization import (
+    equilibrium,
+    linearize,
+    linearize_finite_differences,
+    linearize_grid,
+    linearize_pinocchio,
+)
 from rcm_kin.dynamics.drive import drive_effort
-from rcm_kin.model.gravity import gravity_batch
 from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
+from rcm_kin.model.gravity import gravity_batch
+from rcm_kin.model.reduced import reduced_mass_matrix, relation_jacobian, tree_configuration
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
 from rcm_kin.symbolic.tree import tree_functions, tree_joints
 

@@ -6,13 +6,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from rcm_kin.cli import main
-from rcm_kin.model.gravity import gravity_torque
 from rcm_kin.export.mjcf import keyframes
-from rcm_kin.export.mujoco_check import (actuated_q, at_keyframe, closed_chain_swing, drive_terms, hold_speeds,
-                                         mujoco_swing)
+from rcm_kin.export.mujoco_check import (
+    actuated_q,
+    at_keyframe,
+    closed_chain_swing,
+    drive_terms,
+    hold_speeds,
+    mujoco_swing,
+)
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.model import load_robot
+from rcm_kin.model.gravity import gravity_torque
 
 mujoco = pytest.importorskip("mujoco", reason="MuJoCo is the optional extra [mujoco]")
 
@@ -88,10 +95,11 @@ def test_mujoco_kinematics_closes_the_loops_and_places_our_frames(psm_model, key
 @pytest.mark.parametrize("key", ["home"] + GRID)
 def test_motors_holding_our_gravity_torques_keep_the_arm_at_rest(psm_model, key):
     """Controls = our gravity torques (constrained method: loop solve + projection). The arm (roll,
-    pitch, insertion and the parallelogram joints) stays under 1e-3 rad/s (m/s) for 0.5 s; without
-    the motors it falls (the insertion slides out at about 1 m/s; the exported Coulomb friction
-    holds roll and pitch, and +-30 deg are the pitch limits). The instrument is held too at home; elsewhere its 6 g wrist is an unstable
-    equilibrium (growth rate up to 18 /s by our linearisation, e^9 in 0.5 s) that the start-up
+    pitch, insertion and the parallelogram joints) stays under 1e-3 rad/s (m/s) for 0.5 s; without the
+    motors it falls (the insertion slides out at about 1 m/s; the exported Coulomb friction holds roll
+    and pitch, and +-30 deg are the pitch limits). The instrument is held too at home; elsewhere its 6 g
+    wrist is an unstable equilibrium (growth rate up to 18 /s by our linearisation, e^9 in 0.5 s) that
+    the start-up
     transient of MuJoCo's soft loop constraints tips over, so it is not asserted there."""
     psm = load_robot("psm")
     q = actuated_q(psm_model, at_keyframe(psm_model, key), psm)

@@ -115,8 +115,8 @@ def test_replay_record_is_what_identification_would_predict(params):
     from rcm_kin.dynamics.stick_slip import axis_plant
     from rcm_kin.identification.drive_train import AxisLog, predict_log
     from rcm_kin.identification.excitation_axis import axis_model, optimise_axis
-    from rcm_kin.identification.replay import HOLD_POSE, closed_loop_record
     from rcm_kin.identification.identify import base_model
+    from rcm_kin.identification.replay import HOLD_POSE, closed_loop_record
 
     model = base_model(params)
     axis = axis_model(model, params, "roll")

@@ -13,8 +13,8 @@ from rcm_kin.cli import main
 from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.identification.pose_models import identify_folder, identify_log, physics_axis
 from rcm_kin.identification.records import operating_point, prbs, step_record
-from rcm_kin.identification.transfer_function import fit_percent, fit_transfer_function
 from rcm_kin.identification.telemetry import load_telemetry
+from rcm_kin.identification.transfer_function import fit_percent, fit_transfer_function
 
 T = 0.0025
 THESIS_ROLL = ([4.0426, -8.3312], [1.0, 6.1202, 16.288])     # thesis roll model at (0, 0), PWM -> deg

@@ -11,10 +11,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rcm_kin.model.reduced import relation_jacobian, tree_configuration
-from rcm_kin.model.gravity import gravity_batch, gravity_torque
 from rcm_kin.errors import RcmKinError
 from rcm_kin.identification import regressor as reg
+from rcm_kin.model.gravity import gravity_batch, gravity_torque
+from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 
 TOL = 1e-9          # N m (N): absolute, on torques of order 1-10 N m
 

@@ -13,9 +13,9 @@ import pytest
 
 from rcm_kin.cli import main
 from rcm_kin.errors import RcmKinError
+from rcm_kin.identification.calibration import calibration_logs
 from rcm_kin.identification.rosbag import telemetry_topic
 from rcm_kin.identification.telemetry import load_telemetry, telemetry_files
-from rcm_kin.identification.calibration import calibration_logs
 
 rosbag2 = pytest.importorskip("rosbags.rosbag2")
 from rosbags.typesys import Stores, get_typestore  # noqa: E402

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from oracles.dh_reference import mtm_frames, psm_frames
+
 from rcm_kin import RcmKinError
 from rcm_kin.kinematics.fk import forward_kinematics, frame_placement
 from rcm_kin.kinematics.numeric_ik import solve_ik

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from oracles.dh_reference import davinci_dh_wrist, davinci_frames, davinci_rcm_wrist
+
 from rcm_kin import load_robot
 from rcm_kin.cli import main
 from rcm_kin.kinematics.fk import frame_placement

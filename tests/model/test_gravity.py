@@ -10,11 +10,11 @@ import pytest
 
 from rcm_kin import RcmKinError, load_robot
 from rcm_kin.cli import main
-from rcm_kin.model import constrained
-from rcm_kin.statics.counterweights import design_counterweights, workspace_grid
-from rcm_kin.dynamics.drive import DriveParameters, JointDrive, drive_effort, load_drive_parameters, pwm_to_torque
-from rcm_kin.model.gravity import gravity_batch, gravity_torque, point_mass_gravity_batch
 from rcm_kin.csv_table import format_rows_numpy
+from rcm_kin.dynamics.drive import DriveParameters, JointDrive, drive_effort, load_drive_parameters, pwm_to_torque
+from rcm_kin.model import constrained
+from rcm_kin.model.gravity import gravity_batch, gravity_torque, point_mass_gravity_batch
+from rcm_kin.statics.counterweights import design_counterweights, workspace_grid
 from rcm_kin.statics.gravity_map import gravity_map, parse_range
 
 TOL = 1e-9
@@ -172,7 +172,7 @@ def test_map_matches_pointwise_and_rejects_bad_ranges():
 
 
 def test_counterweight_design_reproduces_osmdv_main_counterweight():
-    """osMDV sized the main counterweight to balance roll with the DPM counterweight where it
+    """OsMDV sized the main counterweight to balance roll with the DPM counterweight where it
     is (1.65 kg at 150.10 mm, 7.95 deg). The roll-balancing distance for 2.63 kg must fall in
     the span of osMDV's own gravity fits (arm lever 227.12 mm at d = 0 to 200.83 mm at d = 160,
     giving 181-218 mm); osMDV chose 200.28 mm."""

@@ -13,8 +13,8 @@ import pytest
 import yourdfpy
 
 from rcm_kin import RcmKinError, load_robot, robot_names
-from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.model.loading import urdf_dir
+from rcm_kin.model.reduced import tree_configuration
 
 REPO_URDF = Path(__file__).resolve().parents[2] / "urdf"
 

@@ -11,8 +11,8 @@ import pytest
 from PIL import Image
 
 from rcm_kin import load_robot
-from rcm_kin.dynamics.drive import load_drive_parameters
 from rcm_kin import plotting as figures
+from rcm_kin.dynamics.drive import load_drive_parameters
 from rcm_kin.statics.gravity_map import gravity_map
 
 PANELS = (("roll", 0), ("pitch", 1))   # (joint, index in the map's driven joints), as drawn
@@ -40,7 +40,7 @@ def drawn(monkeypatch, gmap, drive, **options):
 
 
 def plain_contour(x, y, z):
-    """matplotlib's own contour of the whole data, 9 levels, on a figure of its own."""
+    """Matplotlib's own contour of the whole data, 9 levels, on a figure of its own."""
     fig = figures.pyplot().figure()
     contours = fig.add_subplot().contour(x, y, z, levels=9)
     figures.pyplot().close(fig)

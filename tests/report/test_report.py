@@ -124,8 +124,8 @@ def test_linear_models_section(schedule_section_small, tmp_path):
 
 
 def test_tracking_section(schedule_section_small, tmp_path):
-    from rcm_kin.thesis import SINE_TRACKING_ERROR_DEG
     from rcm_kin.report.sections.tracking import CONTROLLERS, tracking_section
+    from rcm_kin.thesis import SINE_TRACKING_ERROR_DEG
 
     s = tracking_section(tmp_path, schedule_section_small[1].schedule, experiments=("sine",), duration=0.6)
     assert len(s.table.rows) == 2 * len(CONTROLLERS)

@@ -35,8 +35,8 @@ def test_tracking_rows_are_the_reference_loops(nominal_schedule, tmp_path):
     pose: the model's holding PWM there), cell for cell."""
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
-    from rcm_kin.report.sections.tracking import CONTROLLERS, _rows, tracking_experiment
     from rcm_kin.model import load_robot
+    from rcm_kin.report.sections.tracking import CONTROLLERS, _rows, tracking_experiment
     from rcm_kin.simulation.controllers import Hold, make_controller
     from rcm_kin.simulation.experiments import experiment_reference, psm_plant
     from rcm_kin.simulation.firmware import FirmwareSettings

@@ -24,8 +24,14 @@ from rcm_kin.cli.common import check_finite
 from rcm_kin.dynamics.drive import DRIVEN, load_drive_parameters
 from rcm_kin.parallel import batches_of
 from rcm_kin.robustness.execution import run_in_process, run_robustness
-from rcm_kin.robustness.sampling import (DEFAULT_RELATIVE_SPREAD, draw, read_standard_errors, sample_seeds,
-                                         uncertain_parameters, with_values)
+from rcm_kin.robustness.sampling import (
+    DEFAULT_RELATIVE_SPREAD,
+    draw,
+    read_standard_errors,
+    sample_seeds,
+    uncertain_parameters,
+    with_values,
+)
 from rcm_kin.robustness.statistics import spread, summarise
 from rcm_kin.robustness.task import SampleOutcome, Study, run_batch
 
@@ -190,11 +196,11 @@ def test_batches_cover_the_samples_in_order():
 
 def test_a_sample_is_the_simulator_on_the_drawn_set(study, serial):
     """Sample 0 against the simulator run on the drawn parameters with the nominal schedule."""
+    from rcm_kin.model import load_robot
     from rcm_kin.simulation.controllers import make_controller
     from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule, start_hold
     from rcm_kin.simulation.loop import simulate, tracking_metrics
     from rcm_kin.simulation.plant import drive_train_plant
-    from rcm_kin.model import load_robot
 
     seed = sample_seeds(SEED, SAMPLES)[0]
     drawn = with_values(study.params, study.uncertain, draw(study.uncertain, seed))
@@ -486,10 +492,10 @@ def test_an_error_on_a_worker_is_not_retried_and_leaves_stderr_quiet(capfd, tmp_
 
 
 def test_a_run_that_diverges_or_leaves_the_joint_range_is_unstable(params):
+    from rcm_kin.robustness.task import closed_loop_run
     from rcm_kin.simulation.controllers import make_controller
     from rcm_kin.simulation.experiments import SmoothPlant, experiment_reference, psm_plant_and_schedule
     from rcm_kin.simulation.firmware import FirmwareSettings
-    from rcm_kin.robustness.task import closed_loop_run
 
     settings = FirmwareSettings()
     _, schedule = psm_plant_and_schedule(params, settings.period)

@@ -104,7 +104,8 @@ echo '[12577:12577:1129/211500.345678:WARNING:sandbox_linux.cc(430)] InitializeS
 {write}
 exit 0
 """
-WRITES = {"nothing": "", "text": 'echo "not a picture" > "$out"', "png": "printf '\\211PNG\\r\\n\\032\\nfake' > \"$out\""}
+WRITES = {"nothing": "", "text": 'echo "not a picture" > "$out"',
+          "png": "printf '\\211PNG\\r\\n\\032\\nfake' > \"$out\""}
 
 
 def fake_chromium(folder, writes: str):

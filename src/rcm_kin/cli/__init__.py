@@ -11,8 +11,18 @@ import sys
 import warnings
 from importlib.metadata import PackageNotFoundError, version
 
-from rcm_kin.cli import (control, drive_train, export, identification, kinematics, robustness, safety, simulation,
-                         statics, views)
+from rcm_kin.cli import (
+    control,
+    drive_train,
+    export,
+    identification,
+    kinematics,
+    robustness,
+    safety,
+    simulation,
+    statics,
+    views,
+)
 from rcm_kin.cli.common import RAW, Parser, command_options, with_flags
 from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.rosbag import DEFAULT_TOPIC, telemetry_topic

@@ -6,8 +6,19 @@ from dataclasses import asdict
 
 import numpy as np
 
-from rcm_kin.cli.common import (RAW, add_json, add_params, count, driven_model, emit, finite, floats, path_text,
-                                psm_robot, require_psm)
+from rcm_kin.cli.common import (
+    RAW,
+    add_json,
+    add_params,
+    count,
+    driven_model,
+    emit,
+    finite,
+    floats,
+    path_text,
+    psm_robot,
+    require_psm,
+)
 from rcm_kin.control.friction_compensation import DEFAULT_RAMP_DEG_S
 from rcm_kin.control.weights import Weights
 from rcm_kin.errors import output_folder
@@ -95,7 +106,8 @@ def cmd_linearize(args) -> None:
     model = driven_model(args.params, coulomb=not args.no_coulomb)
     lin = linearize(model, [np.radians(args.roll), np.radians(args.pitch), args.insertion])
     np.set_printoptions(precision=5, suppress=True, linewidth=120)
-    text = (f"equilibrium x0 = {lin.x0.round(6).tolist()} (rad, m; at rest), holding PWM u0 = {lin.u0.round(3).tolist()}"
+    text = (f"equilibrium x0 = {lin.x0.round(6).tolist()} (rad, m; at rest), "
+            f"holding PWM u0 = {lin.u0.round(3).tolist()}"
             f"\nstate {lin.state}, input {lin.inputs}"
             f"{'' if model.coulomb else ' (Coulomb friction left out)'}\nA =\n{lin.A}\nB =\n{lin.B}")
     emit(args, lin.as_dict(), text)

@@ -5,8 +5,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from rcm_kin.cli.common import (RAW, add_force, add_json, add_params, check_finite, count, emit, finite, new_output,
-                                path_text, progress_wanted, psm_robot, require_psm)
+from rcm_kin.cli.common import (
+    RAW,
+    add_force,
+    add_json,
+    add_params,
+    check_finite,
+    count,
+    emit,
+    finite,
+    new_output,
+    path_text,
+    progress_wanted,
+    psm_robot,
+    require_psm,
+)
 
 EPILOG_IDENTIFY = ("example: rcm-kin identify psm ../shared/data --out identified.toml --cv\n"
                    "         rcm-kin predict psm roll_step_response_roll_0_pitch_0.csv --joint roll "
@@ -29,7 +42,8 @@ def add_identify(sub) -> None:
     p.add_argument("--out", required=True, help="drive parameter TOML to write (the --params set with the "
                                                 "identified drive trains)")
     p.add_argument("--joint", nargs="+", choices=("roll", "pitch"), default=["roll"],
-                   help="joints to identify (default: roll; --joint pitch fits the pitch in its recorded loop, for study: "
+                   help="joints to identify (default: roll; --joint pitch fits the pitch in its recorded loop, "
+                        "for study: "
                         "its logs are too slow to fix its friction at tracking speeds, see the README)")
     p.add_argument("--cv", action="store_true",
                    help="leave-one-log-out cross-validation, each fold fitted from scratch (minutes)")

@@ -6,8 +6,19 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.cli.common import (RAW, add_force, add_json, add_params, count, driven_model, emit, floats, new_output,
-                                path_text, progress_wanted)
+from rcm_kin.cli.common import (
+    RAW,
+    add_force,
+    add_json,
+    add_params,
+    count,
+    driven_model,
+    emit,
+    floats,
+    new_output,
+    path_text,
+    progress_wanted,
+)
 from rcm_kin.errors import RcmKinError, output_folder
 
 MAX_SAMPLES = 100_000     # samples of one step or segment: the logs hold a few thousand

@@ -3,8 +3,18 @@ run on Dask: an embedded local cluster, or ``--scheduler tcp://HOST:PORT``."""
 
 from __future__ import annotations
 
-from rcm_kin.cli.common import (RAW, add_json, add_params, count, emit, finite, path_text, progress_wanted,
-                               psm_robot, require_psm)
+from rcm_kin.cli.common import (
+    RAW,
+    add_json,
+    add_params,
+    count,
+    emit,
+    finite,
+    path_text,
+    progress_wanted,
+    psm_robot,
+    require_psm,
+)
 from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.simulation.controllers import CONTROLLERS
 
@@ -38,16 +48,19 @@ def add_robustness(sub) -> None:
     p.add_argument("--experiment", required=True, choices=("sine", "step", "target"),
                    help="the experiment each sample runs (as in `simulate`)")
     p.add_argument("--samples", type=count(1, 1_000_000, "samples"), required=True, help="parameter sets drawn")
-    p.add_argument("--seed", type=count(0, 2**32 - 1, ""), default=0, help="seed of the draws (default 0): sample i uses "
+    p.add_argument("--seed", type=count(0, 2**32 - 1, ""), default=0,
+                   help="seed of the draws (default 0): sample i uses "
                                                        "SeedSequence(seed).spawn(samples)[i]")
     p.add_argument("--duration", type=finite(0.0, 10_000.0, "s", open_lo=True),
                    help="simulated seconds (default: the experiment's, as `simulate`)")
-    p.add_argument("--skip", type=finite(0.0, 10_000.0, "s"), default=0.0, help="leave the first S seconds out of the statistics (0)")
+    p.add_argument("--skip", type=finite(0.0, 10_000.0, "s"), default=0.0,
+                   help="leave the first S seconds out of the statistics (0)")
     add_params(p, "nominal drive parameter TOML: the schedule is designed on it (default: the shipped set)")
     p.add_argument("--uncertainty", metavar="FILE",
                    help="`rcm-kin identify ... --json` output: its (jackknife, else Gauss-Newton) standard errors "
                         "set the drive trains' spreads (default: the stated default spreads)")
-    p.add_argument("--batch-size", type=count(1, 1_000_000, "samples"), help="samples per Dask task (default: about 4 tasks per worker)")
+    p.add_argument("--batch-size", type=count(1, 1_000_000, "samples"),
+                   help="samples per Dask task (default: about 4 tasks per worker)")
     add_scheduler(p)
     p.add_argument("--out", metavar="DIR", type=path_text, help="write the empirical-CDF figure (PNG) into DIR")
     add_json(p, '{"samples", "seed", "experiment", "controllers": {NAME: {"roll": {"max_error_deg": {"p5", "median", '
@@ -101,9 +114,11 @@ def add_sweep(sub) -> None:
     p.add_argument("--main-mass", nargs="+", type=finite(0.0, 100.0, "kg", open_lo=True),
                    default=[MAIN_COUNTERWEIGHT[0] * f for f in (0.5, 0.75, 1, 1.25)],
                    help="counterweights: main counterweight masses, kg (default: 0.5-1.25 x osMDV's)")
-    p.add_argument("--dpm-mass", nargs="+", type=finite(0.0, 100.0, "kg", open_lo=True), default=[DPM_COUNTERWEIGHT[0] * f for f in (0.5, 1, 1.5)],
+    p.add_argument("--dpm-mass", nargs="+", type=finite(0.0, 100.0, "kg", open_lo=True),
+                   default=[DPM_COUNTERWEIGHT[0] * f for f in (0.5, 1, 1.5)],
                    help="counterweights: DPM counterweight masses, kg (default: 0.5-1.5 x osMDV's)")
-    p.add_argument("--points", type=count(2, 201, "points per axis"), default=13, help="counterweights: workspace grid points per axis (13)")
+    p.add_argument("--points", type=count(2, 201, "points per axis"), default=13,
+                   help="counterweights: workspace grid points per axis (13)")
     p.add_argument("--error-deg", nargs="+", type=finite(0.0, 90.0, "deg", open_lo=True), default=[0.5, 1.0, 2.0, 4.0],
                    help="weights: roll and pitch error budgets, deg (default 0.5 1 2 4)")
     p.add_argument("--pwm-fraction", nargs="+", type=finite(0.0, 1.0, open_lo=True), default=[0.5, 1.0],
@@ -122,8 +137,8 @@ def cmd_sweep(args) -> None:
     from itertools import product
 
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.robustness import figures, sweeps
     from rcm_kin.parallel import dask_client, map_batches
+    from rcm_kin.robustness import figures, sweeps
     from rcm_kin.robustness.work import check_counterweight_sweep, check_weights_sweep
 
     require_psm(args, "the design sweeps are of the PSM, not '{robot}'")

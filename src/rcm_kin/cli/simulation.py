@@ -4,8 +4,19 @@ from __future__ import annotations
 
 import sys
 
-from rcm_kin.cli.common import (RAW, add_json, add_params, count, emit, finite, floats, path_text, progress_wanted,
-                                psm_robot, require_psm)
+from rcm_kin.cli.common import (
+    RAW,
+    add_json,
+    add_params,
+    count,
+    emit,
+    finite,
+    floats,
+    path_text,
+    progress_wanted,
+    psm_robot,
+    require_psm,
+)
 from rcm_kin.errors import output_folder
 from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS, PWM_LIMIT
 from rcm_kin.simulation.controllers import CONTROLLERS

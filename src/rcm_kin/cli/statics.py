@@ -4,8 +4,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from rcm_kin.cli.common import (RAW, add_force, add_json, add_params, any_robot, emit, finite, joint_values,
-                                new_output, path_text, progress_wanted, psm_robot, require_psm)
+from rcm_kin.cli.common import (
+    RAW,
+    add_force,
+    add_json,
+    add_params,
+    any_robot,
+    emit,
+    finite,
+    joint_values,
+    new_output,
+    path_text,
+    progress_wanted,
+    psm_robot,
+    require_psm,
+)
 from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.model import load_robot
@@ -17,7 +30,8 @@ EPILOG_TORQUE_MAP = ("example: rcm-kin torque-map psm --roll=-30:30:61 --pitch=-
 
 def add_gravity(sub) -> None:
     p = sub.add_parser("gravity", help="holding torque (and PSM motor voltage/PWM) at a pose", parents=[any_robot()],
-                       epilog="example: rcm-kin gravity psm 10 -15 0.08 --deg --json   (roll, pitch in deg, insertion m)",
+                       epilog="example: rcm-kin gravity psm 10 -15 0.08 --deg --json   "
+                              "(roll, pitch in deg, insertion m)",
                        formatter_class=RAW)
     p.add_argument("q", nargs="*", metavar="Q", help="actuated joint values in 'info' order (rad, m); missing are 0")
     p.add_argument("--deg", action="store_true", help="revolute values in degrees")

@@ -4,8 +4,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rcm_kin.cli.common import (RAW, add_force, add_json, any_robot, count, emit, joint_values, new_output,
-                                path_text, progress_wanted)
+from rcm_kin.cli.common import (
+    RAW,
+    add_force,
+    add_json,
+    any_robot,
+    count,
+    emit,
+    joint_values,
+    new_output,
+    path_text,
+    progress_wanted,
+)
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model import load_robot
 from rcm_kin.statics.gravity_map import MAX_POSES

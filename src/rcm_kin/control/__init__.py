@@ -2,7 +2,10 @@
 
 import lazy_loader
 
-__all__ = ["GainSchedule", "Linearization", "LinearizationGrid", "Weights", "friction_compensation", "linearize", "linearize_grid", "schedule_gains", "scheduled_gains", "stability_survey", "zero_order_hold"]
+__all__ = [
+    "GainSchedule", "Linearization", "LinearizationGrid", "Weights", "friction_compensation", "linearize",
+    "linearize_grid", "schedule_gains", "scheduled_gains", "stability_survey", "zero_order_hold",
+]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,

@@ -66,7 +66,6 @@ def friction_compensation(drive: DriveParameters | DriveConstants,
     """The compensation of the smooth model's sliding Coulomb friction: per axis (roll, pitch)
     ``F_c / |k_u|`` counts with ``F_c`` = ``coulomb`` (N m) and ``k_u`` = ``input_gain`` (N m per
     count) of the drive parameters or of a model's :class:`DriveConstants` (DRIVEN order)."""
-
     constants = drive_constants(drive) if isinstance(drive, DriveParameters) else drive
     if np.any(constants.input_gain[:2] >= 0):
         raise RcmKinError("the friction compensation is written for the PSM's hardware sign (a positive PWM lowers "

@@ -154,7 +154,6 @@ def schedule_gains(model: DrivenDynamics, roll_deg, pitch_deg, insertion: float 
     """Design the gain tables on a roll x pitch grid (degrees) at one insertion (m). The schedule
     also carries the friction-compensation feedforward of the model's sliding Coulomb friction
     (the Coulomb level the design leaves out), ramped over ``friction_ramp_deg_s`` (deg/s)."""
-
     if model.coulomb:
         raise RcmKinError("design on the model without Coulomb friction: driven_dynamics(..., coulomb=False)")
     weights = weights or Weights()

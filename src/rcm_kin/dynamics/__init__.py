@@ -2,7 +2,10 @@
 
 import lazy_loader
 
-__all__ = ["AxisFriction", "DriveEffort", "DriveParameters", "DrivenDynamics", "drive_effort", "driven_dynamics", "holding_pwm", "load_drive_parameters", "simulate_axis", "write_parameters"]
+__all__ = [
+    "AxisFriction", "DriveEffort", "DriveParameters", "DrivenDynamics", "drive_effort", "driven_dynamics",
+    "holding_pwm", "load_drive_parameters", "simulate_axis", "write_parameters",
+]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,

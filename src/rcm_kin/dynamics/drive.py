@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.dynamics.drive_schema import DRIVE_TRAIN, DRIVE_TRAIN_DEFAULT, JOINT_DRIVE, check_offset, check_table
 from rcm_kin.dynamics.axis_friction import AxisFriction
+from rcm_kin.dynamics.drive_schema import DRIVE_TRAIN, DRIVE_TRAIN_DEFAULT, JOINT_DRIVE, check_offset, check_table
 from rcm_kin.errors import ParameterFileError, RcmKinError, read_toml
 from rcm_kin.hardware import PWM_LIMIT
 

@@ -24,11 +24,11 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, load_drive_parameters
-from rcm_kin.model.gravity import offset_moments
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import DRIVER_PWM_RANGE
+from rcm_kin.model.gravity import offset_moments
+from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
 from rcm_kin.symbolic.tree import tree_joints, world_placements
 
@@ -144,7 +144,8 @@ def driven_gravity_function(robot: Robot, offsets: dict, q_fixed=None) -> ca.Fun
     gravity = np.array(robot.tree.gravity.linear)
     q, zero = ca.SX.sym("q", 3), ca.DM.zeros(3)
     phi = _driven_closure(robot, q_fixed, q)
-    g = closed_chain_rnea(joints, gravity, phi, q, zero, zero) + _offset_gravity(robot, joints, gravity, offsets, phi, q)
+    g = (closed_chain_rnea(joints, gravity, phi, q, zero, zero)
+         + _offset_gravity(robot, joints, gravity, offsets, phi, q))
     return ca.Function("driven_gravity", [q], [g], ["q"], ["g"])
 
 

@@ -25,14 +25,14 @@ Per driven joint (joint-referred SI: rad, N m, kg m^2), with the encoder on the 
 Every term can be switched off (:data:`TERMS`); with the cable rigid (``cable_stiffness`` 0,
 the default) motor and link are one body and their frictions add.
 
-Integration: time stepping with the friction solved implicitly (Moreau's scheme): each step
-``h`` the velocity update ``(J + h B) v+ = J v + h F - h f`` takes the friction force ``f``
-from its set (the cable's force implicit in both sides' velocities, solved by a few block
-Gauss-Seidel sweeps, so a stiff cable tends to the rigid drive), so a side that would cross
-zero velocity within the step stops exactly, and a side at rest stays at rest while ``|J v + h F| <= h F_s``. Unlike a smoothed (tanh) law this
-really sticks, and unlike Karnopp's model it needs no stick band; unlike LuGre it adds no
-stiff bristle state. Its error is first order in ``h`` (a stop is found within one step); the
-tests check a block under Coulomb friction against its exact stopping time and position.
+Integration: time stepping with the friction solved implicitly (Moreau's scheme): each step ``h`` the
+velocity update ``(J + h B) v+ = J v + h F - h f`` takes the friction force ``f`` from its set (the
+cable's force implicit in both sides' velocities, solved by a few block Gauss-Seidel sweeps, so a stiff
+cable tends to the rigid drive), so a side that would cross zero velocity within the step stops exactly,
+and a side at rest stays at rest while ``|J v + h F| <= h F_s``. Unlike a smoothed (tanh) law this
+really sticks, and unlike Karnopp's model it needs no stick band; unlike LuGre it adds no stiff bristle
+state. Its error is first order in ``h`` (a stop is found within one step); the tests check a block
+under Coulomb friction against its exact stopping time and position.
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ def _lookup(x, grid, table):
 
 @numba.njit(cache=True)
 def _implicit_friction(v, J, h, F, B, static, coulomb, stribeck):
-    """v after a step of ``J v' = F - B v - f`` with ``f`` from the friction set (implicit)."""
+    """V after a step of ``J v' = F - B v - f`` with ``f`` from the friction set (implicit)."""
     p = J * v + h * F
     static = max(static, coulomb)
     if v == 0.0:

@@ -35,13 +35,13 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.model.constrained import solve_loops
-from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, load_drive_parameters
-from rcm_kin.model.gravity import gravity_torque
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.model import Robot
+from rcm_kin.model.constrained import solve_loops
+from rcm_kin.model.gravity import gravity_torque
+from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.symbolic.tree import joint_axis
 
 THESIS_GRID_DEG = (-30, 0, 30)       # roll and pitch of the thesis's operating points (deg)

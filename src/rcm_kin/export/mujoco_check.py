@@ -15,8 +15,8 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
-from rcm_kin.model.reduced import reduced_mass_matrix
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters
+from rcm_kin.model.reduced import reduced_mass_matrix
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot

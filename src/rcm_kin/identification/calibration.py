@@ -33,10 +33,10 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from rcm_kin.dynamics.drive import DriveParameters, drive_effort, with_joint
-from rcm_kin.model.gravity import gravity_batch
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry, step_index, telemetry_files
+from rcm_kin.model.gravity import gravity_batch
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot

@@ -24,8 +24,16 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import differential_evolution, least_squares
 
-from rcm_kin.dynamics.stick_slip import (NAMES, TERM_PARAMETERS, TERMS, AxisFriction, AxisPlant,
-                                         rest_state, simulate_axis, simulate_axis_closed)
+from rcm_kin.dynamics.stick_slip import (
+    NAMES,
+    TERM_PARAMETERS,
+    TERMS,
+    AxisFriction,
+    AxisPlant,
+    rest_state,
+    simulate_axis,
+    simulate_axis_closed,
+)
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import ENCODER_COUNT, HOME_INSERTION, PWM_LIMIT
 from rcm_kin.identification.recorded_law import RecordedLaw, recover_law
@@ -224,8 +232,8 @@ def residuals(friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLo
 
 def fit_friction(search: Search, plants: list[AxisPlant], logs: list[AxisLog], seed: int = 0,
                  generations: int = 100, progress=None) -> tuple[AxisFriction, np.ndarray]:
-    """Shared parameters over ``logs``: evolution then least squares. Returns the estimate and the standard errors of the free parameters (in
-    their own units, NaN where unidentifiable)."""
+    """Shared parameters over ``logs``: evolution then least squares. Returns the estimate and the
+    standard errors of the free parameters (in their own units, NaN where unidentifiable)."""
     if not logs:
         raise RcmKinError("identification needs at least one step log")
     objective = lambda x: float(np.sum(residuals(search.friction(x), plants, logs) ** 2))  # noqa: E731

@@ -60,9 +60,18 @@ from tqdm import tqdm
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, load_drive_parameters
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import ENCODER_COUNT, FIRMWARE_PERIOD, PWM_LIMIT
-from rcm_kin.identification.excitation_axis import (AxisModel, EQUATION_NOISE, JOINT_MARGIN, NOISE_BANDWIDTH,
-                                                    PARAMETERS, PWM_FRACTION, STARTS, VELOCITY_LIMIT,
-                                                    axis_model, optimise_axis)
+from rcm_kin.identification.excitation_axis import (
+    EQUATION_NOISE,
+    JOINT_MARGIN,
+    NOISE_BANDWIDTH,
+    PARAMETERS,
+    PWM_FRACTION,
+    STARTS,
+    VELOCITY_LIMIT,
+    AxisModel,
+    axis_model,
+    optimise_axis,
+)
 from rcm_kin.identification.fourier import Fourier
 from rcm_kin.identification.identify import base_model
 from rcm_kin.identification.replay import HOLD_POSE, JOINTS, stick_slip_errors

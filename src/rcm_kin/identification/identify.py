@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
+
 import numpy as np
 from tqdm import tqdm
 
@@ -20,9 +21,20 @@ from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, load_drive_parameter
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
 from rcm_kin.dynamics.stick_slip import AxisFriction, AxisPlant, axis_plant
 from rcm_kin.errors import RcmKinError
-from rcm_kin.identification.drive_train import (DEFAULT_TERMS, AxisLog, LogCheck, axis_log, check_log, closed_loop_log,
-                                                fit_friction, jackknife_errors, leave_one_out, predict_log,
-                                                search_for, whole_log)
+from rcm_kin.identification.drive_train import (
+    DEFAULT_TERMS,
+    AxisLog,
+    LogCheck,
+    axis_log,
+    check_log,
+    closed_loop_log,
+    fit_friction,
+    jackknife_errors,
+    leave_one_out,
+    predict_log,
+    search_for,
+    whole_log,
+)
 from rcm_kin.identification.log_catalog import CatalogEntry, catalog, classify
 from rcm_kin.identification.telemetry import load_telemetry
 from rcm_kin.model import load_robot

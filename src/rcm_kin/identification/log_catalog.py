@@ -21,8 +21,8 @@ without the pitch is skipped for lack of its pose.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np

@@ -39,8 +39,8 @@ import numpy as np
 import pinocchio as pin
 import scipy.linalg
 
-from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.errors import RcmKinError
+from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot

@@ -2,7 +2,10 @@
 
 import lazy_loader
 
-__all__ = ["ForwardKinematics", "IKSolution", "TeleopMap", "forward_kinematics", "frame_placement", "inverse_kinematics", "shaft_tip_ik", "solve_ik", "teleop_joint_targets", "tool_pose_ik"]
+__all__ = [
+    "ForwardKinematics", "IKSolution", "TeleopMap", "forward_kinematics", "frame_placement", "inverse_kinematics",
+    "shaft_tip_ik", "solve_ik", "teleop_joint_targets", "tool_pose_ik",
+]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,

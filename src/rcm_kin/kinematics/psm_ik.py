@@ -54,7 +54,8 @@ def rcm_geometry(robot: Robot) -> RcmGeometry:
     tip = frame_placement(robot, q0, "shaft_tip").translation
     tip_offset = -float((tip - rcm) @ shaft_axis)
     cross = np.cross(pitch_axis, shaft_axis)
-    if abs(roll_axis @ pitch_axis) > 1e-9 or abs(pitch_axis @ shaft_axis) > 1e-9 or abs(abs(cross @ roll_axis) - 1) > 1e-9:
+    if (abs(roll_axis @ pitch_axis) > 1e-9 or abs(pitch_axis @ shaft_axis) > 1e-9
+            or abs(abs(cross @ roll_axis) - 1) > 1e-9):
         raise RcmKinError(f"{robot.name}: roll, pitch and shaft axes are not mutually orthogonal")
     if np.linalg.norm(np.cross(tip - rcm, shaft_axis)) > 1e-9:
         raise RcmKinError(f"{robot.name}: the shaft does not pass through the RCM")
@@ -212,7 +213,6 @@ def tool_pose_ik(robot: Robot, position, rotation: np.ndarray, jaw: float = 0.0)
     Closed-form start (shaft tip at the target, wrist orientation in closed form), then damped
     least squares over the six arm and wrist joints. Returns a numeric_ik.IKResult.
     """
-
     q0 = np.zeros(robot.nq)
     q0[robot.actuated.index("jaw")] = jaw
     try:

@@ -125,7 +125,8 @@ class Robot:
         try:
             q = np.atleast_1d(np.asarray(q, dtype=float))
         except (TypeError, ValueError):
-            raise RcmKinError(f"joint values must be numbers ({', '.join(self.actuated)}), got {str(q)[:60]!r}") from None
+            raise RcmKinError(f"joint values must be numbers ({', '.join(self.actuated)}), "
+                              f"got {str(q)[:60]!r}") from None
         if q.ndim != 1 or q.size > self.nq or (q.size < self.nq and not allow_short):
             raise RcmKinError(f"{self.name} takes {self.nq} joint values ({', '.join(self.actuated)}), got {q.size}")
         if not np.all(np.isfinite(q)):

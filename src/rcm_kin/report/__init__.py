@@ -1,14 +1,14 @@
 """``rcm-kin report``: the main job on the bundled models, written as a browsable index.html.
 
-Sections (one module each in :mod:`rcm_kin.report.sections`, one template each in
-``templates/``): pictures and meshcat pages of the robots, the models and their kinematic
-self-checks, holding-effort maps with the thesis Fig 4.6/4.7 curves, the drive parameters and
-the counterweight designs, the linear models per grid pose, the model-based gain schedule
-beside the thesis's tables, the thesis's tracking experiments (P against the scheduled
-controller) with animations, the controllers' robustness to the parameter uncertainty (a small
-Monte Carlo, the same as `rcm-kin robustness` gives on Dask), and the safety filters and certificates. With a data folder:
-calibration, identification per pose, the grey-box fit, and the identified drive train against
-every step log (each also left out of the fit) on the measured logs.
+Sections (one module each in :mod:`rcm_kin.report.sections`, one template each in ``templates/``):
+pictures and meshcat pages of the robots, the models and their kinematic self-checks, holding-effort
+maps with the thesis Fig 4.6/4.7 curves, the drive parameters and the counterweight designs, the linear
+models per grid pose, the model-based gain schedule beside the thesis's tables, the thesis's tracking
+experiments (P against the scheduled controller) with animations, the controllers' robustness to the
+parameter uncertainty (a small Monte Carlo, the same as `rcm-kin robustness` gives on Dask), and the
+safety filters and certificates. With a data folder: calibration, identification per pose, the grey-box
+fit, and the identified drive train against every step log (each also left out of the fit) on the
+measured logs.
 
 Each section computes a plain data object; :mod:`rcm_kin.report.render` renders them. The
 sections are cut into independent pieces (:func:`report_jobs`) that a process pool runs on the
@@ -39,8 +39,8 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     returns its data object, the sections are put together from them and the index lists them in
     a fixed order, so the report is the same whatever the number of workers or the order in which
     they finish. A report that fails leaves an index.html that says so."""
-    from rcm_kin.parallel import machine_workers
     from rcm_kin.identification.calibration import calibration_logs
+    from rcm_kin.parallel import machine_workers
     from rcm_kin.statics.gravity_map import check_map_size
 
     if map_points < 2:

@@ -30,11 +30,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rcm_kin.control.gain_schedule import (THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, bilinear,
-                                           closed_loop_matrix, scheduled_gains)
+from rcm_kin.control.gain_schedule import (
+    THESIS_PITCH_DEG,
+    THESIS_ROLL_DEG,
+    GainSchedule,
+    bilinear,
+    closed_loop_matrix,
+    scheduled_gains,
+)
 from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.stability import damping_ratios, firmware_loop_matrix, survey_poses
-from rcm_kin.thesis import K_PITCH, K_ROLL
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
 from rcm_kin.errors import JointLimitError, NonFiniteResultError, RcmKinError
@@ -42,10 +47,17 @@ from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS
 from rcm_kin.model import load_robot
 from rcm_kin.robustness.sampling import Uncertain, draw, with_values
 from rcm_kin.simulation.controllers import CONTROLLERS, Hold, make_controller
-from rcm_kin.simulation.experiments import (check_in_limits, closed_loop, experiment_reference, psm_plant,
-                                            psm_schedule, start_hold)
+from rcm_kin.simulation.experiments import (
+    check_in_limits,
+    closed_loop,
+    experiment_reference,
+    psm_plant,
+    psm_schedule,
+    start_hold,
+)
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import AXES, SimulationResult, tracking_metrics
+from rcm_kin.thesis import K_PITCH, K_ROLL
 
 SURVEY_POINTS = 5       # per axis of the stability grid
 

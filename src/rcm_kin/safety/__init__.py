@@ -4,7 +4,9 @@ after the da Vinci safety thesis (AAU 2015; project digest) and Wieland and Allg
 
 import lazy_loader
 
-__all__ = ["Barrier", "Ellipsoid", "MovingPlane", "Slab", "blended_control", "cbf_qp", "find_certificate", "run_scenario"]
+__all__ = [
+    "Barrier", "Ellipsoid", "MovingPlane", "Slab", "blended_control", "cbf_qp", "find_certificate", "run_scenario",
+]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,

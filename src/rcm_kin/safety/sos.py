@@ -173,7 +173,8 @@ def thesis_program(number: str, delta: float | None = None, error_bound: float |
         r = r_max if r_max is not None else 0.017
         M = np.array([[-1.2 / TAU, 1.2 / TAU], [0.0, 0.0]])
         return BarrierProgram("slide, first order, reference as a state", ("x", "x_ref"), M,
-                              Box((-0.1, -0.1), (0.1, r)), Box((-0.1, -0.1), (0.05 - d, r)), Box((0.05, -0.1), (0.1, r)),
+                              Box((-0.1, -0.1), (0.1, r)), Box((-0.1, -0.1), (0.05 - d, r)),
+                              Box((0.05, -0.1), (0.1, r)),
                               e, tuple(range(7)), 1, np.array([0.1, 0.1]))
     if number == "3":
         d, e = delta if delta is not None else 0.004, eps_bar if eps_bar is not None else 1e-2

@@ -120,7 +120,6 @@ def osmdv_designs(drive: DriveParameters, points: int = 13) -> OsmdvDesigns:
     the home insertion, ``points`` per axis. Once holding the DPM counterweight where osMDV
     built it and weighing the roll alone (what osMDV balanced), once designing both for roll
     and pitch."""
-
     without = load_robot("psm", counterweights=False)
     cad = DriveParameters(drive.joints, {})
     Q = workspace_grid(without, points=points)

@@ -57,7 +57,8 @@ class GravityMap:
     """Holding effort of the driven joints over a roll x pitch x insertion grid: a labelled result.
 
     Every array of :attr:`effort` (``tau`` N m or N, ``motor_torque`` N m, ``current`` A, ``voltage`` V,
-    ``pwm`` counts with the hardware sign, ``saturated``) has the axes :attr:`dims` = ``(pitch, roll, insertion, joint)``:
+    ``pwm`` counts with the hardware sign, ``saturated``) has the axes :attr:`dims` =
+    ``(pitch, roll, insertion, joint)``:
     pitch rows, roll columns. Read one pose by name with :meth:`sel` rather than by position;
     :meth:`write` writes the table (CSV or .npz)."""
 
@@ -149,7 +150,8 @@ def gravity_map(robot: Robot, drive: DriveParameters | None = None, roll_deg=DEF
         drive = load_drive_parameters()
     elif not isinstance(drive, DriveParameters):
         raise RcmKinError(f"drive must be DriveParameters (load_drive_parameters(path)), got {type(drive).__name__}")
-    roll_deg, pitch_deg, insertion = (np.atleast_1d(np.asarray(x, dtype=float)) for x in (roll_deg, pitch_deg, insertion))
+    roll_deg, pitch_deg, insertion = (np.atleast_1d(np.asarray(x, dtype=float))
+                                      for x in (roll_deg, pitch_deg, insertion))
     for name, values, unit in (("roll", np.radians(roll_deg), "deg"), ("pitch", np.radians(pitch_deg), "deg"),
                                ("insertion", insertion, "m")):
         i = robot.actuated.index(name)
@@ -187,7 +189,6 @@ def driven_gravity(robot: Robot, drive: DriveParameters, Q: np.ndarray, progress
     (:func:`rcm_kin.dynamics.state_space.driven_gravity_function`, the numbers of
     :func:`gravity_batch`) compiled to C and
     mapped over the poses; ``progress`` shows a bar over blocks of ``block`` poses."""
-
     offsets = tuple((link, tuple(float(x) for x in h)) for link, h in sorted(drive.gravity_offsets.items()))
     gravity = _compiled_gravity(robot, offsets)
     starts = range(0, len(Q), block)
@@ -203,7 +204,6 @@ def driven_gravity(robot: Robot, drive: DriveParameters, Q: np.ndarray, progress
 def _compiled_gravity(robot: Robot, offsets: tuple) -> ca.Function:
     """The driven gravity with first moments ``offsets`` ((link, (hx, hy, hz)), ...), compiled:
     built once per robot and offsets in a process (and on disk by :mod:`rcm_kin.symbolic.compiled`)."""
-
     return compiled(driven_gravity_function(robot, {link: np.array(h) for link, h in offsets}))
 
 
@@ -279,6 +279,7 @@ def write_gravity_maps(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg
     with ThreadPoolExecutor(1) as pool:
         tables = pool.submit(write_tables)
         drawn = [effort_heatmaps(gmap, drive, out / "torque_map.png"),
-                 thesis_trend_curves(gmap, out / "trend_curves.png"), insertion_curves(sweep, out / "insertion_map.png")]
+                 thesis_trend_curves(gmap, out / "trend_curves.png"),
+                 insertion_curves(sweep, out / "insertion_map.png")]
         written = tables.result()
     return gmap, [written[0], *drawn[:2], written[1], drawn[2]]

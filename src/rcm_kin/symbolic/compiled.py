@@ -15,9 +15,9 @@ bound buffers, without CasADi matrices in between. Before generating C, an SX fu
 subexpressions are merged (``casadi.cse``: the same operations on the same values, fewer of them).
 
 Without a C compiler the interpreted function is returned and a
-:class:`~rcm_kin.errors.CompilerFallbackWarning` says so (once per compiler setting and process). :func:`single_call` evaluates one point through CasADi's
-bound buffers (``Function.buffer``), about 1 us of overhead instead of 20-30 us for a call with
-NumPy arguments.
+:class:`~rcm_kin.errors.CompilerFallbackWarning` says so (once per compiler setting and process).
+:func:`single_call` evaluates one point through CasADi's bound buffers (``Function.buffer``), about 1 us
+of overhead instead of 20-30 us for a call with NumPy arguments.
 """
 
 from __future__ import annotations
@@ -87,7 +87,8 @@ def _warn(reason: str) -> None:
 
 def compiled(fn: ca.Function) -> ca.Function:
     """``fn`` compiled to C and loaded (from the cache when built before), or ``fn`` itself when
-    no C compiler is found or the cache folder cannot be written (a :class:`~rcm_kin.errors.CompilerFallbackWarning`). Raises
+    no C compiler is found or the cache folder cannot be written (a
+    :class:`~rcm_kin.errors.CompilerFallbackWarning`). Raises
     :class:`RcmKinError` when the compiler fails on the code or the library does not load."""
     found = loaded_library(fn)
     return fn if found is None else _load(fn.name(), found[0])

@@ -21,8 +21,8 @@ import meshcat.transformations as tf
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.errors import RcmKinError
+from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.visualization.views import robot_view, show, write_html
 
 if TYPE_CHECKING:

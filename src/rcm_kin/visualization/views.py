@@ -19,9 +19,9 @@ import pinocchio as pin
 from meshcat.animation import Animation
 from pinocchio.visualize import MeshcatVisualizer
 
-from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement
+from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.visualization.offline import OfflineWindow
 
 if TYPE_CHECKING:

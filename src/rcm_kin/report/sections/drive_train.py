@@ -27,12 +27,18 @@ class DriveTrainSection:
 def drive_train_section(out: Path, data: Path, joint: str = "roll", cv: bool = False) -> DriveTrainSection | None:
     """The shipped ``joint`` drive train on the step logs below ``data``: per log the fit of the
     shipped model and (``cv``, minutes: off in the report, whose text points to ``rcm-kin identify
-    --cv``) of the model fitted on the other logs; figures into ``out/identification``. None when the shipped set has no drive train for ``joint`` or no log
-    can show it."""
+    --cv``) of the model fitted on the other logs; figures into ``out/identification``. None when
+    the shipped set has no drive train for ``joint`` or no log can show it."""
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.dynamics.stick_slip import axis_plant
-    from rcm_kin.identification.drive_train import (DEFAULT_TERMS, axis_log, check_log, leave_one_out, predict_log,
-                                                    search_for)
+    from rcm_kin.identification.drive_train import (
+        DEFAULT_TERMS,
+        axis_log,
+        check_log,
+        leave_one_out,
+        predict_log,
+        search_for,
+    )
     from rcm_kin.identification.identify import base_model
     from rcm_kin.identification.log_catalog import catalog
     from rcm_kin.plotting import prediction_figure

@@ -9,10 +9,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from rcm_kin.thesis import FIGURES, OSMDV_COUNTERWEIGHTS, SOURCES
 from rcm_kin.hardware import HOME_INSERTION
-from rcm_kin.report.render import Table, relative
 from rcm_kin.model import load_robot
+from rcm_kin.report.render import Table, relative
+from rcm_kin.thesis import FIGURES, OSMDV_COUNTERWEIGHTS, SOURCES
 
 
 @dataclass(frozen=True)

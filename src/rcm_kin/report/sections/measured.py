@@ -7,8 +7,8 @@ from pathlib import Path
 from typing import ClassVar
 
 from rcm_kin.errors import output_folder
-from rcm_kin.report.render import Table, relative
 from rcm_kin.model import load_robot
+from rcm_kin.report.render import Table, relative
 
 LOG_FOLDERS = (("roll-step", "roll", "step, 2 poles"), ("pitch-prbs", "pitch", "PRBS, 3 poles"))
 

@@ -10,8 +10,8 @@ from typing import ClassVar
 import yourdfpy
 
 from rcm_kin.kinematics.self_check import KinematicChecks, kinematic_checks
-from rcm_kin.report.render import Table
 from rcm_kin.model import joint_table, load_robot
+from rcm_kin.report.render import Table
 
 
 @dataclass(frozen=True)

@@ -15,8 +15,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from rcm_kin.report.render import Table, relative
 from rcm_kin.model import load_robot
+from rcm_kin.report.render import Table, relative
 
 INSTRUMENT = ("instrument_roll", "wrist_pitch", "wrist_yaw", "jaw")
 SWING_JOINTS = ("pitch", "insertion", "wrist_pitch")
@@ -36,8 +36,8 @@ class MujocoSection:
 
 
 def _holding(model, psm) -> Table:
-    from rcm_kin.model.gravity import gravity_torque
     from rcm_kin.export.mujoco_check import actuated_q, at_keyframe, hold_speeds
+    from rcm_kin.model.gravity import gravity_torque
 
     rows = []
     for k in range(model.nkey):

@@ -8,8 +8,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from rcm_kin.report.render import relative
 from rcm_kin.model import load_robot
+from rcm_kin.report.render import relative
 
 VIEW_POSES = {"psm": [np.radians(10.0), np.radians(-15.0), 0.10], "mtm": [0.3, 0.2, 0.4],
               "davinci": [0.0, 0.3, -0.4, 0.2, 0.0, 0.0, 0.2, 0.3, 0.05]}

@@ -11,8 +11,8 @@ from typing import ClassVar
 import numpy as np
 
 from rcm_kin.errors import RcmKinError
-from rcm_kin.report.render import Table, relative
 from rcm_kin.model import load_robot
+from rcm_kin.report.render import Table, relative
 
 RCM_CHAINS = ("psm", "davinci", "davinci_rcm")
 

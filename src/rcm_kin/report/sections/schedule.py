@@ -11,10 +11,10 @@ import numpy as np
 
 from rcm_kin.control.gain_schedule import GainSchedule
 from rcm_kin.control.thesis_comparison import ScheduleContrast
-from rcm_kin.thesis import K_PITCH, K_ROLL, SOURCES
 from rcm_kin.control.weights import Weights
 from rcm_kin.hardware import FIRMWARE_PERIOD, ROLL_FILTER
 from rcm_kin.report.render import Table, relative
+from rcm_kin.thesis import K_PITCH, K_ROLL, SOURCES
 
 
 @dataclass(frozen=True)
@@ -65,8 +65,8 @@ def schedule_section(out: Path, survey_points: int = 21) -> ScheduleSection:
     from rcm_kin.control.thesis_comparison import compare_with_thesis, schedule_contrast
     from rcm_kin.dynamics.state_space import driven_dynamics
     from rcm_kin.errors import output_folder
-    from rcm_kin.plotting import stability_maps
     from rcm_kin.model import load_robot
+    from rcm_kin.plotting import stability_maps
     from rcm_kin.simulation.experiments import psm_schedule
 
     c = compare_with_thesis(driven_dynamics(load_robot("psm"), coulomb=False), survey_points, psm_schedule())

@@ -11,11 +11,10 @@ from typing import ClassVar
 import numpy as np
 
 from rcm_kin.control.gain_schedule import GainSchedule
-from rcm_kin.thesis import (FIGURES, SINE_AMPLITUDE_DEG, SINE_CYCLE_S, SINE_TRACKING_ERROR_DEG,
-                                              SOURCES)
 from rcm_kin.errors import output_folder
 from rcm_kin.hardware import FIRMWARE_PERIOD
 from rcm_kin.report.render import Table, relative
+from rcm_kin.thesis import FIGURES, SINE_AMPLITUDE_DEG, SINE_CYCLE_S, SINE_TRACKING_ERROR_DEG, SOURCES
 
 CONTROLLERS = ("p", "scheduled", "scheduled-gravity")
 SETTLED_FROM = 0.5          # s: the sinusoid starts at full speed; statistics again from here
