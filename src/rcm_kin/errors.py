@@ -52,3 +52,8 @@ def output_folder(path) -> Path:
     except OSError as exc:
         raise RcmKinError(f"cannot create the output folder {out}: {exc.strerror}") from None
     return out
+
+
+class RcmKinWarning(UserWarning):
+    """Something the user should know that does not stop the computation (the CLI prints each as
+    one line ``warning: ...`` on stderr)."""
