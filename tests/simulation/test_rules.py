@@ -108,3 +108,22 @@ def test_saturate_twin_equals_the_rule(whole_counts):
         np.testing.assert_array_equal(out, rules.saturate(command, limit, whole_counts),
                                       err_msg=f"saturate, case {case}")
         assert np.all(np.abs(out) <= limit)
+
+
+def test_friction_feedforward_twin_equals_the_schedule_rule():
+    """The sliding-friction feedforward of the friction-compensated controller, per axis, at
+    reference velocities from rest to far beyond the ramp (tanh saturated), both signs. Within
+    2 units in the last place, not to the bit: the kernel's tanh is the C library's, NumPy's its
+    own vectorised one (they differ by 1 ulp at some arguments)."""
+    from rcm_kin.control.friction_compensation import FrictionCompensation
+
+    rng = np.random.default_rng(16)
+    for case in range(CASES):
+        amplitude, ramp = rng.uniform(0, 60, 2), rng.uniform(0.1, 20)
+        rdot = rng.normal(0, 10 ** rng.uniform(-3, 3), 2) if case % 5 else np.zeros(2)
+        expected = FrictionCompensation(amplitude, ramp).feedforward(rdot)
+        got = [kernel.friction_feedforward(amplitude[i], ramp, rdot[i]) for i in range(2)]
+        try:
+            np.testing.assert_array_max_ulp(np.array(got), expected, maxulp=2)
+        except AssertionError as exc:
+            raise AssertionError(f"friction_feedforward, case {case}: {exc}") from None

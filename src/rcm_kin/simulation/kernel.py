@@ -3,8 +3,9 @@ plant step and the loop over ticks.
 
 Each firmware rule here is the declared twin of its plain statement in
 :mod:`rcm_kin.simulation.rules`, written in the same order of operations (so both engines give the
-same numbers); ``tests/simulation/test_rules.py`` holds each twin to its statement on random
-inputs. :func:`command` runs the laws of :class:`~rcm_kin.simulation.kernel_forms.LoopLaw` as the
+same numbers; the friction feedforward's ``tanh`` is the C library's here and NumPy's own in
+the readable controller, 1 ulp apart at some arguments); ``tests/simulation/test_rules.py`` holds
+each twin to its statement on random inputs. :func:`command` runs the laws of :class:`~rcm_kin.simulation.kernel_forms.LoopLaw` as the
 readable controllers (:mod:`rcm_kin.simulation.controllers`) do.
 
 The plant's CasADi functions are called through their C entry point
@@ -113,6 +114,13 @@ def saturate(command, limit, whole_counts, out):
             out[j] = np.trunc(out[j])
 
 
+@numba.njit(cache=True)
+def friction_feedforward(amplitude, ramp, rdot):
+    """Twin of :meth:`rcm_kin.control.friction_compensation.FrictionCompensation.feedforward` for
+    one axis: ``-F tanh(rdot / v_ramp)`` counts (``amplitude`` F, ``ramp`` v_ramp deg/s)."""
+    return -amplitude * np.tanh(rdot / ramp)
+
+
 # --- the controller laws ------------------------------------------------------------------------
 
 @numba.njit(cache=True)
@@ -138,8 +146,8 @@ def _gain_scheduled(kind, flags, roll_grid, pitch_grid, table, hold_table, frict
     else:
         hold[0], hold[1] = 0.0, 0.0
     if compensate:
-        hold[0] = hold[0] + -friction[0] * np.tanh(rdot[0] / friction[2])
-        hold[1] = hold[1] + -friction[1] * np.tanh(rdot[1] / friction[2])
+        hold[0] = hold[0] + friction_feedforward(friction[0], friction[2], rdot[0])
+        hold[1] = hold[1] + friction_feedforward(friction[1], friction[2], rdot[1])
     command[0] = -(k[0] * e0 + k[1] * v0) + hold[0]
     feedforward = k[5] * rdot[1] + k[6] * racc[1] + hold[1]
     command[1], memory[0] = conditional_integral(memory[0], e1, period, limit[1], False, True,

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rcm_kin.errors import RcmKinError
+
 P, PID, STATE_FEEDBACK, THESIS = 0, 1, 2, 3          # LoopLaw.kind
 KINDS = (P, PID, STATE_FEEDBACK, THESIS)
 
@@ -49,7 +51,7 @@ class LoopLaw:
         """Every array as the kernel's types (contiguous floats, bool flags), so that one
         compiled specialisation serves every law; the gains padded to 6 and the table to 7 values."""
         if self.kind not in KINDS:
-            raise ValueError(f"unknown kernel law kind {self.kind}")
+            raise RcmKinError(f"unknown kernel law kind {self.kind} (one of P, PID, STATE_FEEDBACK, THESIS)")
         gains = np.zeros(6)
         given = np.asarray(self.gains, dtype=float).ravel()
         gains[:given.size] = given
