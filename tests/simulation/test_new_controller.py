@@ -18,7 +18,7 @@ from rcm_kin.simulation.compiled_loop import EngineFallbackWarning
 from rcm_kin.simulation.controllers import Hold, Sample
 from rcm_kin.simulation.experiments import closed_loop, psm_plant
 from rcm_kin.simulation.firmware import FirmwareSettings
-from rcm_kin.simulation.kernel_forms import P, LoopLaw
+from rcm_kin.simulation.kernel_forms import LoopLaw, P
 from rcm_kin.simulation.loop import simulate
 from rcm_kin.simulation.references import sine_reference, step_reference
 

@@ -4,6 +4,8 @@ clamping and saturation edges among them: a failure names the rule."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -39,6 +41,14 @@ def test_bilinear_twin_equals_the_rule():
     assert edge[0] == 1.0                                   # clamped to roll 1, pitch 0
 
 
+def _law(pid, with_ff, c1, c2, k, ff, E):
+    """The integral laws of the controllers, as the readable ones write them."""
+    if pid:
+        return -(c1 + k * E + c2)
+    u = -(c1 + c2 + k * E)
+    return u + ff if with_ff else u
+
+
 @pytest.mark.parametrize("pid", [False, True])
 def test_conditional_integral_twin_equals_the_rule(pid):
     """The PID's law and the pitch's (with and without feedforward), commands inside the limit,
@@ -52,11 +62,7 @@ def test_conditional_integral_twin_equals_the_rule(pid):
         integral, error, period = rng.normal(0, 1), rng.normal(0, 5), rng.choice([1 / 400, 1 / 200, 0.01])
         limit = rng.choice([rng.uniform(1, 300), 150.0])
 
-        def law(E):
-            if pid:
-                return -(c1 + k * E + c2)
-            u = -(c1 + c2 + k * E)
-            return u + ff if with_ff else u
+        law = functools.partial(_law, pid, with_ff, c1, c2, k, ff)
         if case % 5 == 0:                                   # the new command exactly at the limit
             limit = abs(law(integral + error * period))
         expected = rules.conditional_integral(integral, error, period, law, limit)

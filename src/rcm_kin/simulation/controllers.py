@@ -35,7 +35,7 @@ from rcm_kin import thesis as thesis_reference
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, scheduled_gains
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import INSERTION_KP, P_GAINS
-from rcm_kin.simulation.kernel_forms import P, PID, STATE_FEEDBACK, THESIS, LoopLaw, stacked
+from rcm_kin.simulation.kernel_forms import PID, STATE_FEEDBACK, THESIS, LoopLaw, P, stacked
 from rcm_kin.simulation.rules import bilinear, conditional_integral
 
 CONTROLLERS = ("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity", "scheduled-friction", "thesis")

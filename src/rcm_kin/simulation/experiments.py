@@ -52,7 +52,7 @@ def exact_key(value) -> tuple:
         return ("dict",) + tuple(sorted((repr(k), exact_key(v)) for k, v in value.items()))
     if isinstance(value, (list, tuple)):
         return (type(value).__name__,) + tuple(exact_key(v) for v in value)
-    if isinstance(value, np.ndarray) or isinstance(value, np.generic):
+    if isinstance(value, (np.ndarray, np.generic)):
         array = np.ascontiguousarray(value)
         return ("array", array.dtype.str, array.shape, array.tobytes())
     if isinstance(value, float):

@@ -32,7 +32,7 @@ from numba.extending import intrinsic
 
 from rcm_kin.dynamics import stick_slip
 from rcm_kin.dynamics.stick_slip import advance
-from rcm_kin.simulation.kernel_forms import P, PID, THESIS
+from rcm_kin.simulation.kernel_forms import PID, THESIS, P
 
 DRIVE_TRAIN, SMOOTH = 0, 1                         # CompiledPlant.kind
 
