@@ -15,10 +15,10 @@ quantisation, firmware velocity estimate), and the cost of one plant period, sam
     python benchmarks/bench_simulation.py
 Targets: at least 10 simulated seconds per wall-clock second for every controller (the report's
 experiments and a parameter sweep stay interactive on 2 cores); issue 16: 200 on the shipped
-plant's fast path, which is the whole loop in one compiled kernel
-(:mod:`rcm_kin.simulation.compiled_loop`), measured here in the same run as the plain reference
-loop (``loop.simulate`` of the readable controller classes on ``DriveTrainPlant``) and the
-per-tick fast path it falls back to without a C compiler (:mod:`rcm_kin.simulation.fast_path`).
+plant's fast engine, the whole loop in one compiled kernel (:mod:`rcm_kin.simulation.compiled_loop`),
+measured here in the same run as the readable reference loop (``loop.simulate`` of the readable
+controller classes on ``DriveTrainPlant``), which is also its fallback without a C compiler; each
+controller's compiled run is checked against the readable one tick for tick (issue 24).
 """
 
 from __future__ import annotations
@@ -34,14 +34,12 @@ import pinocchio as pin  # noqa: E402
 from common import best_of, per_call, report  # noqa: E402
 
 from rcm_kin import load_robot  # noqa: E402
-from rcm_kin.model.reduced import tree_configuration  # noqa: E402
 from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
 from rcm_kin.dynamics.state_space import drive_constants, driven_dynamics  # noqa: E402
 from rcm_kin.hardware import FIRMWARE_PERIOD, PWM_LIMIT  # noqa: E402
+from rcm_kin.model.reduced import tree_configuration  # noqa: E402
 from rcm_kin.simulation.controllers import CONTROLLERS, Sample, make_controller  # noqa: E402
-from rcm_kin.simulation.experiments import (experiment_reference, psm_plant_and_schedule, run_experiment,  # noqa: E402
-                                            start_hold)
-from rcm_kin.simulation.fast_path import compiled_period_map, fast_controller, fast_plant  # noqa: E402
+from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule, run_experiment, start_hold  # noqa: E402
 from rcm_kin.simulation.loop import simulate  # noqa: E402
 from rcm_kin.simulation.plant import period_map  # noqa: E402
 
@@ -117,40 +115,42 @@ def main() -> None:
         f"{label} {seconds / shipped:.2f}" for label, (_, seconds) in zip(("smooth RK4", "Pinocchio", "open-tree ABA"),
                                                                           rows[1:4])))
     compiled_plant, _ = psm_plant_and_schedule(fast=True)
-    per_tick_plant = fast_plant(plant)
-    fast_smooth = compiled_period_map(smooth)
-    fast_scheduled = fast_controller(scheduled)
-    report([(f"fast path: one plant period, {type(compiled_plant).__name__}.step (numba + C M/bias, from Python)",
-             per_call(lambda: compiled_plant.step(x, u), 2000)),
-            ("per-tick fast path: drive-train plant period (compiled M/bias, buffered calls)",
-             per_call(lambda: per_tick_plant.step(x, u), 2000)),
-            ("fast path: smooth period_map compiled, buffered call", per_call(lambda: fast_smooth(xs, u), 2000)),
-            ("per-tick fast path: scheduled-gravity tick on stacked tables",
-             per_call(lambda: fast_scheduled.command(memory, sample), 2000))])
-    closed_loop(plant, per_tick_plant, schedule, smooth_params)
+    compiled_smooth = psm_plant_and_schedule(smooth_params, fast=True)[0]
+    report([(f"compiled engine: one plant period, {type(compiled_plant).__name__}.step (numba + C M/bias, "
+             "from Python)", per_call(lambda: compiled_plant.step(x, u), 2000)),
+            (f"compiled engine: one smooth period, {type(compiled_smooth).__name__}.step (C RK4, from Python)",
+             per_call(lambda: compiled_smooth.step(xs, u), 2000))])
+    closed_loop(plant, schedule, smooth_params)
 
 
+def tick_for_tick(compiled, readable) -> bool:
+    """Whether two runs agree tick for tick: the readings and sent PWM identical, the positions
+    within 1e-9 rad (m), the commands within 1e-9 counts (as tests/simulation hold them)."""
+    return bool(np.array_equal(compiled.measured, readable.measured) and np.array_equal(compiled.pwm, readable.pwm)
+                and np.allclose(compiled.position[:, :2], readable.position[:, :2], rtol=0, atol=np.degrees(1e-9))
+                and np.allclose(compiled.position[:, 2], readable.position[:, 2], rtol=0, atol=1e-9)
+                and np.allclose(compiled.command, readable.command, rtol=0, atol=1e-9))
 
-def closed_loop(plant, per_tick_plant, schedule, smooth_params, duration: float = 6.0) -> None:
+
+def closed_loop(plant, schedule, smooth_params, duration: float = 6.0) -> None:
     """Real-time factor (simulated s per wall s) per controller, the sine experiment, same run:
-    the compiled loop (``run_experiment``, default), the per-tick fast path (its fallback) and
-    the plain reference loop on the shipped drive-train plant; the smooth plant's compiled loop
-    and reference loop (``run_experiment(fast=False)``)."""
+    the compiled loop (``run_experiment``, default) and the readable reference loop on the shipped
+    drive-train plant, and whether they agree tick for tick; the smooth plant's compiled loop and
+    reference loop (``run_experiment(fast=False)``)."""
     simulated = duration + 1.0                                        # + 1 s settling
     reference = experiment_reference("sine", FIRMWARE_PERIOD, duration)
     print(f"\nclosed loop, sine {duration:g} s + 1 s settling at 400 Hz: simulated s per wall s (best of 3); "
           "target >= 200 for the compiled loop")
-    header = (f"{'controller':18}  {'compiled loop':>13}  {'per-tick fast':>13}  {'reference':>10}  "
-              f"{'compiled/ref':>12}  {'us/tick':>7}  {'smooth compiled':>15}  {'smooth ref':>10}")
+    header = (f"{'controller':18}  {'compiled loop':>13}  {'reference':>10}  {'compiled/ref':>12}  {'us/tick':>7}  "
+              f"{'tick for tick':>13}  {'smooth compiled':>15}  {'smooth ref':>10}")
     print(header)
     worst = worst_smooth = float("inf")
+    equal = True
     hold = start_hold(reference)                    # every run from the steady hold, as run_experiment
     for name in CONTROLLERS:
         law = make_controller(name, schedule)
         runs = {
             "compiled": lambda: run_experiment("sine", name, duration=duration),
-            "per-tick": lambda: simulate(per_tick_plant.step, fast_controller(law), reference,
-                                         initial=per_tick_plant.initial, hold=hold),
             "reference": lambda: simulate(plant.step, law, reference, initial=plant.initial, hold=hold),
             "smooth compiled": lambda: run_experiment("sine", name, duration=duration, params=smooth_params),
             "smooth ref": lambda: run_experiment("sine", name, duration=duration, params=smooth_params, fast=False),
@@ -159,13 +159,18 @@ def closed_loop(plant, per_tick_plant, schedule, smooth_params, duration: float 
         run_experiment("sine", name, duration=0.2, params=smooth_params)
         run_experiment("sine", name, duration=0.2, params=smooth_params, fast=False)
         factor = {key: simulated / best_of(run) for key, run in runs.items()}
+        compiled = runs["compiled"]()
+        same = compiled.engine == "compiled" and tick_for_tick(compiled, runs["reference"]())
+        equal = equal and same
         worst = min(worst, factor["compiled"])
-        print(f"{name:18}  {factor['compiled']:11.0f} x  {factor['per-tick']:11.1f} x  {factor['reference']:8.1f} x  "
+        print(f"{name:18}  {factor['compiled']:11.0f} x  {factor['reference']:8.1f} x  "
               f"{factor['compiled'] / factor['reference']:10.0f} x  {1e6 * FIRMWARE_PERIOD / factor['compiled']:7.2f}"
-              f"  {factor['smooth compiled']:13.0f} x  {factor['smooth ref']:8.1f} x")
+              f"  {'equal' if same else 'DIFFERS':>13}  {factor['smooth compiled']:13.0f} x  "
+              f"{factor['smooth ref']:8.1f} x")
         worst_smooth = min(worst_smooth, factor["smooth compiled"])
     print(f"slowest compiled loop on the shipped plant: {worst:.0f} x real time "
-          f"({'meets' if worst >= 200 else 'MISSES'} the 200 x target); on the smooth model {worst_smooth:.0f} x")
+          f"({'meets' if worst >= 200 else 'MISSES'} the 200 x target); on the smooth model {worst_smooth:.0f} x; "
+          f"compiled and readable loops {'equal tick for tick' if equal else 'DIFFER'} for every controller")
 
 
 if __name__ == "__main__":

@@ -12,8 +12,10 @@ import numpy as np
 import pytest
 
 from rcm_kin.dynamics.state_space import driven_dynamics
-from rcm_kin.simulation import compiled_loop
-from rcm_kin.simulation.compiled_loop import compiled_drive_train, compiled_smooth, loop_law, simulate_compiled
+from rcm_kin.errors import CompilerFallbackWarning
+from rcm_kin.simulation import compiled_loop, kernel_forms
+from rcm_kin.simulation.compiled_loop import EngineFallbackWarning, loop_law, run_closed_loop, simulate_compiled
+from rcm_kin.simulation.compiled_plant import compiled_drive_train, compiled_smooth
 from rcm_kin.simulation.controllers import CONTROLLERS, Hold, make_controller
 from rcm_kin.simulation.experiments import psm_plant_and_schedule
 from rcm_kin.simulation.firmware import FirmwareSettings
@@ -80,6 +82,7 @@ def test_compiled_loop_equals_the_reference_tick_for_tick(plants, experiment, no
         law = make_controller(name, schedule)
         slow = simulate(step, law, ref, settings, seed=7, settle=0.5, initial=initial, hold=hold)
         fast = simulate_compiled(fast_plant, loop_law(law, hold), law.name, ref, settings, seed=7, settle=0.5)
+        assert fast.engine == "compiled" and slow.engine == "readable"
         assert fast.controller == name and fast.position.shape == slow.position.shape
         np.testing.assert_allclose(fast.position[:, :2], slow.position[:, :2], rtol=0, atol=np.degrees(1e-9))
         np.testing.assert_allclose(fast.position[:, 2], slow.position[:, 2], rtol=0, atol=1e-9)
@@ -136,28 +139,66 @@ def test_divergence_is_an_error_at_the_same_tick():
     assert str(fast.value) == str(slow.value)
 
 
-def test_unknown_controllers_stay_in_python():
-    """A controller the kernel does not know is not translated (run_experiment then uses simulate)."""
+@needs_compiler
+def test_a_controller_without_a_kernel_form_runs_readable_with_one_warning(plants):
+    """A controller with no ``kernel_law`` (or a subclass with a ``command`` of its own) is not
+    translated: the runner runs it in the readable loop and says so with one warning; a subclass
+    that only renames a shipped controller keeps its kernel form."""
     from dataclasses import dataclass
 
-    from rcm_kin.simulation.controllers import PController
+    from rcm_kin.simulation.controllers import PController, Sample
 
     @dataclass(frozen=True)
     class Doubled(PController):
         name: str = "doubled"
 
-    assert loop_law(Doubled()) is None
-    assert loop_law(PController()).kind == compiled_loop.P
+        def command(self, memory: np.ndarray, sample: Sample):
+            u, memory = PController.command(self, memory, sample)
+            return np.r_[2 * u[:2], u[2]], memory
+
+    @dataclass(frozen=True)
+    class Renamed(PController):
+        name: str = "renamed"
+
+    @dataclass(frozen=True)
+    class Lawless:
+        name: str = "lawless"
+
+        def initial_memory(self, hold=None):
+            return np.zeros(0)
+
+        def command(self, memory, sample):
+            return PController().command(memory, sample)
+
+    assert loop_law(Doubled()) is None and loop_law(Lawless()) is None
+    assert loop_law(PController()).kind == kernel_forms.P and loop_law(Renamed()).kind == kernel_forms.P
+    step, initial, fast_plant, _ = plants
+    ref = step_reference(0.2, T, at=0.05)
+    for controller in (Doubled(), Lawless()):
+        with pytest.warns(EngineFallbackWarning) as caught:
+            result = run_closed_loop(fast_plant, controller, ref)
+        assert len(caught) == 1 and "no kernel form" in str(caught[0].message)
+        assert result.engine == "readable" and result.controller == controller.name
+        slow = simulate(step, controller, ref, initial=initial)
+        np.testing.assert_array_equal(result.pwm, slow.pwm)
 
 
-def test_no_compiler_falls_back_with_one_line(reference_plant, tmp_path, monkeypatch, capsys, recwarn):
-    """With the compiler hidden there is no compiled loop, and it is said (one warning from the
-    compiled functions, one from the loop), once; a warning or a ``warning:`` line on stderr."""
+def test_no_compiler_falls_back_with_one_line(reference_plant, tmp_path, monkeypatch, capsys):
+    """With the compiler hidden there is no compiled plant, the compiled functions say so once (a
+    warning), and the runner runs the readable loop with one warning (the same numbers)."""
+    from rcm_kin.simulation.controllers import PController
+
     monkeypatch.setenv("CC", str(tmp_path / "no-such-cc"))
-    compiled_loop._warn_fallback.cache_clear()
-    assert compiled_drive_train(reference_plant) is None
-    assert compiled_drive_train(reference_plant) is None
-    said = [str(w.message) for w in recwarn] + [line.removeprefix("warning: ")
-                                                for line in capsys.readouterr().err.strip().splitlines()]
-    assert len(said) == 2 and said[0].startswith("no C compiler")
-    assert "closed loop runs tick by tick in Python" in said[1]
+    with pytest.warns(CompilerFallbackWarning) as said:
+        assert compiled_drive_train(reference_plant) is None
+        assert compiled_drive_train(reference_plant) is None
+        assert reference_plant.kernel_plant() is None
+    assert len(said) == 1 and str(said[0].message).startswith("no C compiler")
+    assert capsys.readouterr().err == ""
+    ref = step_reference(0.1, T, at=0.05)
+    with pytest.warns(EngineFallbackWarning) as caught:
+        result = run_closed_loop(reference_plant, PController(), ref)
+    assert len(caught) == 1 and "no compiled form" in str(caught[0].message)
+    assert result.engine == "readable"
+    slow = simulate(reference_plant.step, PController(), ref, initial=reference_plant.initial)
+    np.testing.assert_array_equal(result.pwm, slow.pwm)

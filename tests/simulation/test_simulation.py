@@ -37,7 +37,7 @@ def as_step(F: ca.Function):
 
 
 def test_sampled_p_loop_on_integrators_is_the_geometric_sequence():
-    """y' = b u under u = -Kp (r - y) every T with the input held: the error after the step is
+    """Y' = b u under u = -Kp (r - y) every T with the input held: the error after the step is
     e_k = e_0 (1 - |b| T Kp 180/pi)^k exactly, with the step seen at the first tick at or after 0.5 s."""
     b = np.array([-0.05, -0.02, 1e-4])                   # rad (m) per s per count, hardware signs
     F = period_map(linear_forward(b), T)
@@ -324,9 +324,16 @@ def test_the_sinusoid_starts_from_the_steady_hold_of_its_first_pose(psm, params)
 
 
 @pytest.mark.parametrize("plant", ["drive-train", "smooth"])
-def test_fast_path_equals_the_readable_classes_tick_for_tick(plant, params):
-    """Every controller on both plants: compiled plant functions and stacked gain tables against
-    the reference classes, with encoder noise so that every branch sees varied samples."""
+def test_the_compiled_engine_equals_the_readable_classes_tick_for_tick(plant, params):
+    """Every controller on both plants: ``run_experiment`` in the compiled engine (no fallback)
+    against the readable reference classes, with encoder noise so that every branch sees varied
+    samples."""
+    import os
+    import shutil
+    import warnings
+
+    from rcm_kin.simulation.compiled_loop import EngineFallbackWarning
+    compiler = shutil.which(os.environ.get("CC") or "cc") is not None     # hidden in CI's fallback run
     from dataclasses import replace
 
     from rcm_kin.simulation.controllers import CONTROLLERS
@@ -334,9 +341,44 @@ def test_fast_path_equals_the_readable_classes_tick_for_tick(plant, params):
     assert bool(p.drive_train) == (plant == "drive-train")
     settings = FirmwareSettings(noise_counts=1.0)
     for name in CONTROLLERS:
-        fast = run_experiment("step", name, duration=0.6, params=p, settings=settings, seed=3)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            fast = run_experiment("step", name, duration=0.6, params=p, settings=settings, seed=3)
         slow = run_experiment("step", name, duration=0.6, params=p, settings=settings, seed=3, fast=False)
+        fallbacks = [w for w in caught if issubclass(w.category, EngineFallbackWarning)]
+        assert fast.engine == ("compiled" if compiler else "readable") and slow.engine == "readable"
+        assert len(fallbacks) == (0 if compiler else 1), name              # never silently slower
         np.testing.assert_allclose(fast.position[:, :2], slow.position[:, :2], rtol=0, atol=np.degrees(1e-9))
         np.testing.assert_allclose(fast.position[:, 2], slow.position[:, 2], rtol=0, atol=1e-9)
         np.testing.assert_array_equal(fast.pwm, slow.pwm)
         assert np.ptp(fast.pwm[:, 1]) > 10            # the controller acted
+
+
+def test_cached_schedules_and_models_tell_apart_the_9th_significant_digit(params):
+    """Two parameter sets that differ only in the 9th significant digit of one gravity offset (their
+    reprs are the same: NumPy prints 8 digits) get schedules, models and plants of their own; the
+    same values, in another object, share them."""
+    from dataclasses import replace
+
+    from rcm_kin.simulation import experiments
+
+    for link, offset in params.gravity_offsets.items():
+        i = int(np.argmax(np.abs(offset)))
+        nudged = np.array(offset, dtype=float)
+        nudged[i] += 3 * 10.0 ** (np.floor(np.log10(abs(offset[i]))) - 8)
+        other = replace(params, gravity_offsets={**params.gravity_offsets, link: nudged})
+        if repr(other) == repr(params):
+            break
+    else:
+        pytest.fail("no gravity offset whose 9th digit hides from repr")
+    assert f"{nudged[i]:.8e}" != f"{offset[i]:.8e}"                     # the 9th significant digit differs
+    same = replace(params, gravity_offsets={k: np.array(v) for k, v in params.gravity_offsets.items()})
+    assert experiments.exact_key(params) != experiments.exact_key(other)
+    assert experiments.exact_key(params) == experiments.exact_key(same)
+    assert experiments.psm_schedule(other) is not experiments.psm_schedule(params)
+    assert experiments.psm_schedule(same) is experiments.psm_schedule(params)
+    assert experiments._smooth_model(other) is not experiments._smooth_model(params)
+    assert experiments.psm_plant_and_schedule(other)[0] is not experiments.psm_plant_and_schedule(params)[0]
+    q = np.array([0.2, -0.3, 0.1])
+    gravity = [np.array(experiments._smooth_model(p).gravity(q)).ravel() for p in (params, other)]
+    assert not np.array_equal(*gravity)                                  # and the models differ

@@ -169,7 +169,7 @@ def _run_closed(th, ku, kemf, Jm, grid, gtab, Mtab, law, excitation, state, peri
 
 
 @numba.njit(cache=True)
-def _advance(th, ku, kemf, Jm, gravity, inertia, pwm, state, period, substeps):
+def advance(th, ku, kemf, Jm, gravity, inertia, pwm, state, period, substeps):
     h = period / substeps
     for _ in range(substeps):
         _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h)
@@ -186,7 +186,7 @@ def advance_axis(friction_vector: np.ndarray, input_gain: float, back_emf: float
     rigid-body ``gravity`` (N m, bias forces included) and link ``inertia`` (kg m^2) frozen over
     the period: the closed-loop simulator's plant step. ``friction_vector``: :meth:`AxisFriction.vector`."""
     substeps = substep_count(period)
-    _advance(friction_vector, input_gain, back_emf, rotor_inertia, gravity, inertia, pwm, state, period, substeps)
+    advance(friction_vector, input_gain, back_emf, rotor_inertia, gravity, inertia, pwm, state, period, substeps)
 
 
 def rest_state(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float) -> np.ndarray:

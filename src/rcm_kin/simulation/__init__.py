@@ -2,7 +2,10 @@
 
 import lazy_loader
 
-__all__ = ["Controller", "FirmwareSettings", "Hold", "SimulationResult", "closed_loop", "experiment_reference", "make_controller", "run_experiment", "simulate", "tracking_metrics"]
+__all__ = [
+    "Controller", "FirmwareSettings", "Hold", "SimulationResult", "closed_loop", "experiment_reference",
+    "make_controller", "run_experiment", "simulate", "tracking_metrics",
+]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,

@@ -9,6 +9,10 @@ The insertion is held by the firmware's P loop (30 PWM/mm) under every controlle
 
 The interface is :class:`Controller` (a ``typing.Protocol``). To add a controller: a dataclass
 with ``name``, ``initial_memory(hold)`` and ``command``, and an entry in :func:`make_controller`.
+To run it in the compiled kernel too, give it ``kernel_law(hold)``: its law as a
+:class:`~rcm_kin.simulation.kernel_forms.LoopLaw` (one of the kernel's kinds with its gains and
+tables). Without one it runs in the readable loop, and the runner says so with an
+:class:`~rcm_kin.simulation.compiled_loop.EngineFallbackWarning`.
 
 A run starts from the steady hold of its first pose (:class:`Hold`): a controller with an error
 integral starts it where the law, at zero error and rest, sends the PWM that holds that pose. The
@@ -22,15 +26,17 @@ with an empty integral would spend its whole length with the holding PWM missing
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from rcm_kin import thesis as thesis_reference
-from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, bilinear, scheduled_gains
+from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, scheduled_gains
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import INSERTION_KP, P_GAINS
+from rcm_kin.simulation.kernel_forms import PID, STATE_FEEDBACK, THESIS, LoopLaw, P, stacked
+from rcm_kin.simulation.rules import bilinear, conditional_integral
 
 CONTROLLERS = ("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity", "scheduled-friction", "thesis")
 MODEL_FREE = ("p", "pid", "thesis")        # the controllers that need no gain schedule
@@ -71,7 +77,12 @@ class Controller(Protocol):
     ``command`` maps the memory and one :class:`Sample` to the PWM (3,) (counts, hardware sign,
     before saturation) and the next memory; ``initial_memory`` is the memory before the first
     sample (a float array, possibly empty): integrals charged to hold ``hold`` when given, else
-    zero. Pure: no state outside ``memory``."""
+    zero. Pure: no state outside ``memory``.
+
+    Optional: ``kernel_law(hold) -> LoopLaw | None``, the same law as the arrays the compiled
+    kernel runs (:class:`~rcm_kin.simulation.kernel_forms.LoopLaw`, its ``memory``
+    ``initial_memory(hold)``); None, or no such method: the controller runs in the readable loop.
+    The kernel's result equals ``command``'s tick for tick (the tests hold every shipped one)."""
 
     name: str
 
@@ -86,14 +97,10 @@ def _insertion(sample: Sample) -> float:
     return INSERTION_KP * (sample.reference[2] - sample.position[2])
 
 
-def _conditional_integral(integral: float, error: float, period: float, law, limit: float) -> tuple[float, float]:
-    """Anti-windup by conditional integration: keep the new integral unless the command is
-    saturated and integrating would push it further into saturation. Returns (u, integral)."""
-    candidate = integral + error * period
-    u = law(candidate)
-    if abs(u) > limit and np.sign(u) == np.sign(law(candidate) - law(integral)):
-        return law(integral), integral
-    return u, candidate
+def _own_law(controller, owner: type) -> bool:
+    """Whether ``controller`` runs ``owner``'s law: a subclass with a ``command`` of its own has no
+    kernel form until it states one (its ``kernel_law`` would describe the parent's law)."""
+    return type(controller).command is owner.command
 
 
 @dataclass(frozen=True)
@@ -109,6 +116,11 @@ class PController:
     def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         e = sample.reference[:2] - sample.position[:2]
         return np.array([-self.kp[0] * e[0], -self.kp[1] * e[1], _insertion(sample)]), memory
+
+    def kernel_law(self, hold: Hold | None = None) -> LoopLaw | None:
+        if not _own_law(self, PController):
+            return None
+        return LoopLaw(P, self.initial_memory(hold), gains=np.asarray(self.kp, dtype=float))
 
 
 @dataclass(frozen=True)
@@ -132,9 +144,14 @@ class PIDController:
         u, integral = np.zeros(3), memory[:2].copy()
         for i in range(2):
             law = lambda E, i=i: -(self.kp[i] * e[i] + self.ki[i] * E + self.kd[i] * de[i])  # noqa: E731
-            u[i], integral[i] = _conditional_integral(memory[i], e[i], sample.period, law, sample.pwm_limit[i])
+            u[i], integral[i] = conditional_integral(memory[i], e[i], sample.period, law, sample.pwm_limit[i])
         u[2] = _insertion(sample)
         return u, np.r_[integral, e]
+
+    def kernel_law(self, hold: Hold | None = None) -> LoopLaw | None:
+        if not _own_law(self, PIDController):
+            return None
+        return LoopLaw(PID, self.initial_memory(hold), gains=np.r_[self.kp, self.ki, self.kd])
 
 
 @dataclass(frozen=True)
@@ -185,9 +202,24 @@ class StateFeedbackController:
         u[0] = -(k_roll[0] * e[0] + k_roll[1] * v[0]) + hold[0]
         feedforward = ff[0] * sample.reference_velocity[1] + ff[1] * sample.reference_acceleration[1] + hold[1]
         law = lambda E: -(k_pitch[0] * e[1] + k_pitch[1] * v[1] + k_pitch[2] * E) + feedforward  # noqa: E731
-        u[1], integral = _conditional_integral(memory[0], e[1], sample.period, law, sample.pwm_limit[1])
+        u[1], integral = conditional_integral(memory[0], e[1], sample.period, law, sample.pwm_limit[1])
         u[2] = _insertion(sample)
         return u, np.array([integral])
+
+    def kernel_law(self, hold: Hold | None = None) -> LoopLaw | None:
+        if not _own_law(self, StateFeedbackController):
+            return None
+        s = self.schedule
+        if self.friction and s.friction is None:
+            raise RcmKinError("the friction-compensated controller needs a schedule with its friction feedforward")
+        roll, pitch, table = stacked(s.roll_deg, s.pitch_deg, s.k_roll, s.k_pitch, s.ff_pitch)
+        law = LoopLaw(STATE_FEEDBACK, self.initial_memory(hold), roll_deg=roll, pitch_deg=pitch, table=table,
+                      flags=np.array([self.scheduled, self.gravity, self.track_velocity, self.friction]))
+        if self.gravity:
+            law = replace(law, hold=s.u_hold)
+        if self.friction:
+            law = replace(law, friction=np.r_[s.friction.pwm, s.friction.ramp_deg_s])
+        return law
 
 
 @dataclass(frozen=True)
@@ -217,9 +249,16 @@ class ThesisController:
         u = np.zeros(3)
         u[0] = -(k_roll[0] * e[0] + k_roll[1] * v[0])
         law = lambda E: -(k_pitch[0] * e[1] + k_pitch[1] * v[1] + k_pitch[2] * E)  # noqa: E731
-        u[1], integral = _conditional_integral(memory[0], e[1], sample.period, law, sample.pwm_limit[1])
+        u[1], integral = conditional_integral(memory[0], e[1], sample.period, law, sample.pwm_limit[1])
         u[2] = _insertion(sample)
         return u, np.array([integral])
+
+    def kernel_law(self, hold: Hold | None = None) -> LoopLaw | None:
+        if not _own_law(self, ThesisController):
+            return None
+        roll, pitch, table = stacked(THESIS_ROLL_DEG, THESIS_PITCH_DEG, thesis_reference.K_ROLL,
+                                     thesis_reference.K_PITCH)
+        return LoopLaw(THESIS, self.initial_memory(hold), roll_deg=roll, pitch_deg=pitch, table=table)
 
 
 def make_controller(name: str, schedule: GainSchedule | None = None) -> Controller:

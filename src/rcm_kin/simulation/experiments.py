@@ -8,8 +8,7 @@ schedule`` does.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Callable
+import dataclasses
 
 import numpy as np
 
@@ -18,13 +17,11 @@ from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics, holding_pwm
 from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.model import load_robot
-from rcm_kin.simulation.compiled_loop import (CompiledPlant, compiled_drive_train, compiled_smooth, loop_law,
-                                              simulate_compiled)
+from rcm_kin.simulation.compiled_loop import run_closed_loop
 from rcm_kin.simulation.controllers import MODEL_FREE, Controller, Hold, make_controller
-from rcm_kin.simulation.fast_path import compiled_period_map, fast_controller, fast_plant
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import SimulationResult, firmware_units, simulate
-from rcm_kin.simulation.plant import drive_train_plant, period_map
+from rcm_kin.simulation.plant import Plant, SmoothPlant, drive_train_plant, period_map
 from rcm_kin.simulation.references import EXPERIMENTS, Reference, sine_reference, step_reference, target_reference
 
 DEFAULT_DURATION = {"sine": 6.0, "step": 3.0, "target": None}   # s; None: the recording's length
@@ -43,34 +40,54 @@ def experiment_reference(experiment: str, period: float, duration: float | None 
     return target_reference(load_robot("psm"), duration, period, trajectory)
 
 
-_BUILT: dict[str, object] = {}               # repr(params, period, substeps, fast) -> plant
-_SCHEDULES: dict[str, GainSchedule] = {}     # repr(params) -> schedule (about 0.5 s each)
-_MODELS: dict[str, DrivenDynamics] = {}      # repr(params) -> model without Coulomb friction
+def exact_key(value) -> tuple:
+    """A hashable key of ``value`` that tells apart any two different numbers: floats by their
+    exact bits (``float.hex``), arrays by dtype, shape and bytes, recursively over dataclass fields,
+    dicts, lists and tuples (``repr`` keeps 8 significant digits of an array, so parameter sets
+    differing in the 9th would share a cached schedule)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return (type(value).__qualname__,) + tuple((f.name, exact_key(getattr(value, f.name)))
+                                                   for f in dataclasses.fields(value))
+    if isinstance(value, dict):
+        return ("dict",) + tuple(sorted((repr(k), exact_key(v)) for k, v in value.items()))
+    if isinstance(value, (list, tuple)):
+        return (type(value).__name__,) + tuple(exact_key(v) for v in value)
+    if isinstance(value, (np.ndarray, np.generic)):
+        array = np.ascontiguousarray(value)
+        return ("array", array.dtype.str, array.shape, array.tobytes())
+    if isinstance(value, float):
+        return ("float", value.hex())
+    if value is None or isinstance(value, (bool, int, str, bytes)):
+        return (type(value).__name__, value)
+    raise TypeError(f"no exact key for a {type(value).__name__}")
+
+
+_BUILT: dict[tuple, object] = {}               # exact_key(params, period, substeps, fast) -> plant
+_SCHEDULES: dict[tuple, GainSchedule] = {}     # exact_key(params) -> schedule (about 0.5 s each)
+_MODELS: dict[tuple, DrivenDynamics] = {}      # exact_key(params) -> model without Coulomb friction
 
 
 def _smooth_model(params: DriveParameters) -> DrivenDynamics:
     """The driven-joint model of ``params`` without Coulomb friction, built once per process (the
     schedule's design model; its gravity gives the holding PWM)."""
-    key = repr(params)
+    key = exact_key(params)
     if key not in _MODELS:
         _MODELS[key] = driven_dynamics(load_robot("psm"), params, coulomb=False)
     return _MODELS[key]
 
 
-def psm_plant(params: DriveParameters, period: float, substeps: int = 4, fast: bool = False):
-    """The PSM plant with ``params`` (``step(x, u) -> x`` over one ``period`` s, ``initial(q) -> x``):
-    the identified drive trains (:class:`~rcm_kin.simulation.plant.DriveTrainPlant`) when
-    ``params`` has them, else the smooth model's period map (``substeps`` RK4 steps); ``fast``: its
-    model functions compiled (a :class:`~rcm_kin.simulation.compiled_loop.CompiledPlant`; without a
-    C compiler the per-tick :mod:`rcm_kin.simulation.fast_path`)."""
+def psm_plant(params: DriveParameters, period: float, substeps: int = 4, fast: bool = False) -> Plant:
+    """The PSM plant with ``params`` (a :class:`~rcm_kin.simulation.plant.Plant`): the identified
+    drive trains (:class:`~rcm_kin.simulation.plant.DriveTrainPlant`) when ``params`` has them, else
+    the smooth model's period map (:class:`~rcm_kin.simulation.plant.SmoothPlant`, ``substeps`` RK4
+    steps per ``period`` s); ``fast``: its kernel form, the model functions compiled (a
+    :class:`~rcm_kin.simulation.compiled_plant.CompiledPlant`), where there is a C compiler."""
     psm = load_robot("psm")
     if params.drive_train:
         plant = drive_train_plant(psm, params, period)
-        return (compiled_drive_train(plant) or fast_plant(plant)) if fast else plant
-    smooth = period_map(driven_dynamics(psm, params).forward, period, substeps)
-    if fast:
-        return compiled_smooth(smooth, period) or SmoothPlant(compiled_period_map(smooth))
-    return SmoothPlant(lambda x, u: np.array(smooth(x, u)).ravel())
+    else:
+        plant = SmoothPlant(period_map(driven_dynamics(psm, params).forward, period, substeps), period)
+    return (plant.kernel_plant() or plant) if fast else plant
 
 
 def psm_schedule(params: DriveParameters | None = None) -> GainSchedule:
@@ -78,38 +95,24 @@ def psm_schedule(params: DriveParameters | None = None) -> GainSchedule:
     designed on the model without Coulomb friction (as ``rcm-kin schedule``); computed once per
     process and parameter set (about 0.5 s)."""
     params = params or load_drive_parameters()
-    key = repr(params)
+    key = exact_key(params)
     if key not in _SCHEDULES:
         _SCHEDULES[key] = schedule_gains(_smooth_model(params), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
     return _SCHEDULES[key]
 
 
-def _built_plant(params: DriveParameters, period: float, substeps: int, fast: bool):
+def _built_plant(params: DriveParameters, period: float, substeps: int, fast: bool) -> Plant:
     """:func:`psm_plant`, built once per process and arguments."""
-    key = repr((params, period, substeps, fast))
+    key = exact_key((params, float(period), int(substeps), bool(fast)))
     if key not in _BUILT:
         _BUILT[key] = psm_plant(params, period, substeps, fast)
     return _BUILT[key]
 
 
-@dataclass(frozen=True)
-class SmoothPlant:
-    """The smooth model's period map with the loop's plant interface (``initial``, ``step``)."""
-
-    step: Callable[[np.ndarray, np.ndarray], np.ndarray]
-
-    def initial(self, position) -> np.ndarray:
-        return np.r_[np.asarray(position, dtype=float), np.zeros(3)]
-
-
 def psm_plant_and_schedule(params: DriveParameters | None = None, period: float = FirmwareSettings().period,
                            substeps: int = 4, fast: bool = False):
-    """``(plant, GainSchedule)`` of the PSM with ``params`` (default: shipped set). The plant has
-    ``step(x, u) -> x`` and ``initial(q) -> x``: the identified drive trains
-    (:class:`~rcm_kin.simulation.plant.DriveTrainPlant`) when ``params`` has them, else the
-    smooth model; ``fast``: its model functions compiled (a
-    :class:`~rcm_kin.simulation.compiled_loop.CompiledPlant`, whose closed loop runs in one
-    compiled kernel; without a C compiler the per-tick :mod:`rcm_kin.simulation.fast_path`)."""
+    """``(plant, GainSchedule)`` of the PSM with ``params`` (default: shipped set): the plant of
+    :func:`psm_plant` (``fast``: its kernel form, whose closed loop runs in one compiled kernel)."""
     params = params or load_drive_parameters()
     return _built_plant(params, period, substeps, fast), psm_schedule(params)
 
@@ -127,11 +130,11 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
                    params: DriveParameters | None = None, settings: FirmwareSettings | None = None,
                    trajectory=None, seed: int = 0, progress: bool = False, fast: bool = True) -> SimulationResult:
     """Simulate one thesis experiment with one controller (names as in the CLI). ``fast``: the
-    whole loop in one compiled kernel (:mod:`rcm_kin.simulation.compiled_loop`); without a C
-    compiler the per-tick fast path (:mod:`rcm_kin.simulation.fast_path`, compiled plant functions
-    and stacked gain tables); ``False`` runs the readable reference classes. All give the same
-    result (tests/simulation/test_compiled_loop.py, tests/simulation/test_simulation.py). The run starts from the steady
-    hold of the first pose (:func:`start_hold`): integrals charged with its holding PWM."""
+    whole loop in one compiled kernel (:mod:`rcm_kin.simulation.compiled_loop`; without a C
+    compiler the readable loop, with a warning); ``False`` runs the readable reference loop. Both
+    give the same result (tests/simulation/test_compiled_loop.py, tests/simulation/test_simulation.py).
+    The run starts from the steady hold of the first pose (:func:`start_hold`): integrals charged
+    with its holding PWM."""
     settings, params = settings or FirmwareSettings(), params or load_drive_parameters()
     plant = _built_plant(params, settings.period, 4, fast)
     schedule = None if controller in MODEL_FREE else psm_schedule(params)     # the design takes about 1 s
@@ -142,23 +145,20 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
     return result
 
 
-def closed_loop(plant, controller: Controller, reference: Reference, settings: FirmwareSettings | None = None,
+def closed_loop(plant: Plant, controller: Controller, reference: Reference, settings: FirmwareSettings | None = None,
                 seed: int = 0, progress: bool = False, fast: bool = True, hold: Hold | None = None) -> SimulationResult:
     """``controller`` on ``plant`` (:func:`psm_plant`) along ``reference``, from rest at its first
     pose, the controller's integrals charged to ``hold`` (:func:`start_hold`) when given. ``fast``:
-    in one compiled kernel when the plant is a
-    :class:`~rcm_kin.simulation.compiled_loop.CompiledPlant` and the kernel knows the controller,
-    else tick by tick with the controller's fast path (:func:`fast_controller`); ``False``: the
-    readable reference loop (:func:`rcm_kin.simulation.loop.simulate`). The same result either way
-    (the tests hold the paths to each other tick for tick). A state that leaves the finite numbers
-    raises :class:`~rcm_kin.errors.NonFiniteResultError`."""
-    settings = settings or FirmwareSettings()
-    charged = hold.within(settings.pwm_limit) if hold else None
-    arrays = loop_law(controller, charged) if fast and isinstance(plant, CompiledPlant) else None
-    if arrays is not None:
-        return simulate_compiled(plant, arrays, controller.name, reference, settings, seed=seed, progress=progress)
-    return simulate(plant.step, fast_controller(controller) if fast else controller, reference, settings, seed=seed,
-                    progress=progress, initial=plant.initial, hold=hold)
+    in one compiled kernel when the controller and the plant have kernel forms, else in the
+    readable loop with an :class:`~rcm_kin.simulation.compiled_loop.EngineFallbackWarning`
+    (:func:`~rcm_kin.simulation.compiled_loop.run_closed_loop`); ``False``: the readable reference
+    loop (:func:`rcm_kin.simulation.loop.simulate`). The same result either way (the tests hold the
+    engines to each other tick for tick). A state that leaves the finite numbers raises
+    :class:`~rcm_kin.errors.NonFiniteResultError`."""
+    if fast:
+        return run_closed_loop(plant, controller, reference, settings, seed, progress, hold)
+    return simulate(plant.step, controller, reference, settings, seed=seed, progress=progress,
+                    initial=plant.initial, hold=hold)
 
 
 def check_in_limits(result: SimulationResult) -> None:

@@ -8,6 +8,9 @@ The defaults are the flashed firmware's numbers (:mod:`rcm_kin.hardware`):
   smoothed by an EMA ``vf = a vf + (1 - a) v_raw`` (a = 0.9), the pitch's is raw.
 - PWM: the controller's command is saturated (roll +-100, pitch +-150, insertion +-100 counts)
   and sent as a whole number of counts (truncated toward zero, as a C ``int`` cast does).
+
+The rules themselves are stated in :mod:`rcm_kin.simulation.rules`; the functions here apply
+them with a :class:`FirmwareSettings`.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import numpy as np
 
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import DRIVER_PWM_RANGE, ENCODER_COUNT, FIRMWARE_PERIOD, PWM_LIMIT, ROLL_FILTER
+from rcm_kin.simulation.rules import quantise, saturate, velocity_estimate
 
 
 @dataclass(frozen=True)
@@ -45,24 +49,18 @@ class FirmwareSettings:
 
 
 def encoder_reading(settings: FirmwareSettings, position: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Measured (roll deg, pitch deg, insertion m) of the true position in the same units."""
-    count = settings.encoder_count
-    exact = count == 0
-    counts = np.round(position / np.where(exact, 1.0, count))
-    if settings.noise_counts:
-        counts = counts + np.round(rng.normal(0.0, settings.noise_counts, 3))
-    return np.where(exact, position, counts * count)
+    """Measured (roll deg, pitch deg, insertion m) of the true position in the same units
+    (:func:`rcm_kin.simulation.rules.quantise`); with noise, 3 whole counts drawn from ``rng``."""
+    noise = np.round(rng.normal(0.0, settings.noise_counts, 3)) if settings.noise_counts else np.zeros(3)
+    return quantise(position, settings.encoder_count, noise)
 
 
-def velocity_estimate(settings: FirmwareSettings, measured: np.ndarray, previous: np.ndarray,
+def firmware_velocity(settings: FirmwareSettings, measured: np.ndarray, previous: np.ndarray,
                       filtered: np.ndarray) -> np.ndarray:
-    """Firmware velocity (deg/s, deg/s, m/s): backward difference, EMA on the roll only."""
-    raw = (measured - previous) / settings.period
-    a = settings.roll_filter
-    return np.array([a * filtered[0] + (1 - a) * raw[0], raw[1], raw[2]])
+    """Firmware velocity (deg/s, deg/s, m/s): :func:`rcm_kin.simulation.rules.velocity_estimate`."""
+    return velocity_estimate(measured, previous, filtered, settings.period, settings.roll_filter)
 
 
 def sent_pwm(settings: FirmwareSettings, command: np.ndarray) -> np.ndarray:
-    """The PWM the drivers receive: saturated, then whole counts."""
-    u = np.clip(command, -settings.pwm_limit, settings.pwm_limit)
-    return np.trunc(u) if settings.quantise_pwm else u
+    """The PWM the drivers receive: :func:`rcm_kin.simulation.rules.saturate` at the settings' limits."""
+    return saturate(command, settings.pwm_limit, settings.quantise_pwm)

@@ -1,5 +1,9 @@
 """The sampled closed loop: encoder -> velocity estimate -> controller -> PWM (held) -> plant.
 
+The readable reference of the closed loop, and the fallback of the compiled kernel
+(:mod:`rcm_kin.simulation.compiled_loop`) where a controller or a plant has no kernel form; the
+firmware's rules it applies are stated in :mod:`rcm_kin.simulation.rules`.
+
 At tick ``k`` (time ``k T``) the firmware reads the encoders, estimates the velocities, runs
 the controller and sends the PWM, which the plant integrates over ``[k T, (k + 1) T)``. Before
 ``t = 0`` the loop holds the reference's first pose for ``settle`` s, so every experiment starts
@@ -18,7 +22,7 @@ from tqdm import tqdm
 
 from rcm_kin.errors import NonFiniteResultError, RcmKinError
 from rcm_kin.simulation.controllers import Controller, Hold, Sample
-from rcm_kin.simulation.firmware import FirmwareSettings, encoder_reading, sent_pwm, velocity_estimate
+from rcm_kin.simulation.firmware import FirmwareSettings, encoder_reading, firmware_velocity, sent_pwm
 from rcm_kin.simulation.references import Reference
 
 FIRMWARE_SCALE = np.array([np.degrees(1.0), np.degrees(1.0), 1.0])     # (rad, rad, m) -> (deg, deg, m)
@@ -37,6 +41,7 @@ class SimulationResult:
     command: np.ndarray         # (N, 3) controller output before saturation, counts
     pwm: np.ndarray             # (N, 3) sent to the drivers, counts
     settings: FirmwareSettings
+    engine: str = "readable"    # which loop ran it: "readable" (simulate) or "compiled" (the kernel)
 
     @property
     def error(self) -> np.ndarray:
@@ -91,7 +96,7 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: C
         moving = k >= 0
         true = firmware_units(x[:3])
         measured = encoder_reading(settings, true, rng)
-        filtered = velocity_estimate(settings, measured, previous, filtered)
+        filtered = firmware_velocity(settings, measured, previous, filtered)
         sample = Sample(measured, filtered, ref_fw[i], vel_fw[i] if moving else zero,
                         acc_fw[i] if moving else zero, settings.period, settings.pwm_limit)
         command, memory = controller.command(memory, sample)

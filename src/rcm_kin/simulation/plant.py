@@ -1,7 +1,9 @@
 """The plant over one controller period, with the PWM held (zero-order hold).
 
-Two plants: the smooth model (:func:`period_map`), and the identified drive trains with
-friction that sticks (:class:`DriveTrainPlant`, time-stepped as :mod:`rcm_kin.dynamics.stick_slip`).
+Two plants: the smooth model (:func:`period_map`, :class:`SmoothPlant`), and the identified drive
+trains with friction that sticks (:class:`DriveTrainPlant`, time-stepped as
+:mod:`rcm_kin.dynamics.stick_slip`). Both are :class:`Plant` s, and so is their kernel form, the
+:class:`~rcm_kin.simulation.compiled_plant.CompiledPlant` that ``kernel_plant()`` gives.
 
 Smooth model: fixed-step RK4 with the PWM held.
 
@@ -17,8 +19,9 @@ velocity reverses through the friction.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import casadi as ca
 import numpy as np
@@ -27,10 +30,27 @@ from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, JointDrive, with_joi
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
 from rcm_kin.dynamics.stick_slip import AxisFriction, advance_axis
 from rcm_kin.errors import RcmKinError
+from rcm_kin.simulation.compiled_plant import CompiledPlant, compiled_drive_train, compiled_smooth
 from rcm_kin.symbolic.integrators import rk4_map
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
+
+
+@runtime_checkable
+class Plant(Protocol):
+    """What the closed loop drives: ``initial(position) -> x``, the state at rest at ``position``
+    (rad, rad, m), and ``step(x, u) -> x``, one controller period under the PWM ``u`` (3,) counts
+    held; ``x[:3]`` is what the encoders see (SI).
+
+    Optional: ``kernel_plant() -> CompiledPlant | None``, the plant as the compiled kernel takes it
+    (:mod:`rcm_kin.simulation.compiled_plant`); None, or no such method: the loop runs in Python."""
+
+    def initial(self, position) -> np.ndarray:
+        ...
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        ...
 
 
 def period_map(forward: ca.Function, period: float, substeps: int = 4) -> ca.Function:
@@ -75,6 +95,32 @@ class DriveTrainPlant:
                          M[i, i] - d.reflected_inertia[i], float(u[i]), axis, self.period)
             state[:, i] = axis
         return state.ravel()
+
+    def kernel_plant(self) -> CompiledPlant | None:
+        """This plant with its mass matrix and bias compiled to C; None without a C compiler."""
+        return compiled_drive_train(self)
+
+
+@dataclass(frozen=True)
+class SmoothPlant:
+    """The smooth model's period map as a :class:`Plant`: ``x = [q; v]`` (6,). ``period_map`` is
+    the CasADi ``(x, u) -> x(T)`` of :func:`period_map` (with its ``period`` given, the plant has a
+    kernel form), or any function of NumPy arrays (run in Python only)."""
+
+    period_map: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    period: float | None = None         # s
+
+    def initial(self, position) -> np.ndarray:
+        return np.r_[np.asarray(position, dtype=float), np.zeros(3)]
+
+    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        return np.array(self.period_map(x, u)).ravel()
+
+    def kernel_plant(self) -> CompiledPlant | None:
+        """The CasADi period map compiled to C; None without a C compiler or for a Python function."""
+        if self.period is None or not isinstance(self.period_map, ca.Function):
+            return None
+        return compiled_smooth(self.period_map, self.period)
 
 
 def smooth_friction(drive: JointDrive) -> AxisFriction:

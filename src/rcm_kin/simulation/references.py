@@ -14,10 +14,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from rcm_kin.thesis import SINE_AMPLITUDE_DEG, SINE_CYCLE_S
 from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.kinematics.teleop import default_teleop_map, teleop_joint_targets
+from rcm_kin.thesis import SINE_AMPLITUDE_DEG, SINE_CYCLE_S
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
