@@ -6,7 +6,9 @@ edited on disk is reloaded at the next call, an unchanged one is built once.
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import os
 import threading
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -23,6 +25,7 @@ from rcm_kin.model.robot import Robot
 GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, base frame (z up) of every bundled robot
 
 
+@functools.cache
 def urdf_dir() -> Path:
     """The folder of bundled URDFs: inside the installed package, else the source checkout's ``urdf/``."""
     package = Path(__file__).resolve().parents[1]
@@ -34,7 +37,12 @@ def urdf_dir() -> Path:
 
 def robot_names() -> list[str]:
     """Names of the bundled robots (their sidecars in :func:`urdf_dir`)."""
-    return sorted(p.stem for p in urdf_dir().glob("*.toml"))
+    return list(_bundled_names())
+
+
+@functools.cache
+def _bundled_names() -> tuple[str, ...]:
+    return tuple(sorted(p.stem for p in urdf_dir().glob("*.toml")))
 
 
 def _joint_q_index(model: pin.Model, name: str, where: str) -> int:
@@ -113,7 +121,8 @@ def _check_passive_relations(robot: Robot, tol: float = 1e-9) -> None:
                               f"(residual {np.max(np.abs(residual)):.2e} m at q = {np.round(q, 4).tolist()})")
 
 
-_CACHE: dict[tuple, Robot] = {}   # (sidecar path, counterweights, content digest) -> robot
+_CACHE: dict[tuple, Robot] = {}   # (counterweights, sidecar digest, URDF path, URDF digest) -> robot
+_DESCRIPTIONS: dict[tuple[str, str], RobotDescription] = {}   # (sidecar path, its digest) -> description
 _CACHE_LOCK = threading.Lock()
 _CACHE_SIZE = 32
 
@@ -125,21 +134,37 @@ def _sidecar_path(name: str) -> Path:
     name = str(name)
     if name.endswith(".toml"):
         return Path(name)
-    if name in robot_names():
+    if name in _bundled_names():
         return urdf_dir() / f"{name}.toml"
     raise RcmKinError(f"unknown robot '{name}'; choose one of: {', '.join(robot_names())}")
 
 
-def _digest(*paths: Path) -> str:
-    """SHA-256 of the files' bytes (a missing file is left to the reader's own error)."""
-    h = hashlib.sha256()
-    for path in paths:
-        try:
-            h.update(Path(path).read_bytes())
-        except OSError:
-            h.update(b"<unreadable>")
-        h.update(b"\0")
-    return h.hexdigest()
+def _digest(path: Path) -> str:
+    """SHA-256 of the file's bytes (a missing file is left to the reader's own error)."""
+    try:
+        with open(path, "rb") as fh:
+            return hashlib.sha256(fh.read()).hexdigest()
+    except OSError:
+        return "<unreadable>"
+
+
+def _bounded_put(cache: dict, key, value):
+    """``cache[key]`` unless another thread put one first; the oldest entry goes past
+    :data:`_CACHE_SIZE`."""
+    with _CACHE_LOCK:
+        if key not in cache and len(cache) >= _CACHE_SIZE:
+            cache.pop(next(iter(cache)))
+        return cache.setdefault(key, value)
+
+
+def _description(path: Path) -> tuple[RobotDescription, str]:
+    """The sidecar at ``path`` read (or the one read before from the same bytes), and its digest."""
+    digest = _digest(path)
+    key = (os.path.abspath(path), digest)
+    description = _DESCRIPTIONS.get(key)
+    if description is None or not description.urdf.exists():
+        description = _bounded_put(_DESCRIPTIONS, key, read_description(path))
+    return description, digest
 
 
 def load_robot(name: str | Path, counterweights: bool = True) -> Robot:
@@ -150,14 +175,9 @@ def load_robot(name: str | Path, counterweights: bool = True) -> Robot:
     changed builds the new model; the cached robot holds no shared scratch data
     (:meth:`Robot.create_data`)."""
     path = _sidecar_path(name)
-    description = read_description(path)
-    key = (str(path.resolve()), bool(counterweights), _digest(path, description.urdf))
-    with _CACHE_LOCK:
-        robot = _CACHE.get(key)
+    description, sidecar = _description(path)
+    key = (bool(counterweights), sidecar, str(description.urdf), _digest(description.urdf))
+    robot = _CACHE.get(key)
     if robot is None:
-        robot = build_robot(description, counterweights)
-        with _CACHE_LOCK:
-            if len(_CACHE) >= _CACHE_SIZE:
-                _CACHE.pop(next(iter(_CACHE)))
-            robot = _CACHE.setdefault(key, robot)
+        robot = _bounded_put(_CACHE, key, build_robot(description, counterweights))
     return robot
