@@ -52,10 +52,14 @@ def test_readme_is_short_and_links_pages_that_exist():
     assert links and [link for link in links if not (ROOT / link).is_file()] == []
 
 
-def test_readme_python_example_runs(capsys):
+def test_readme_python_example_runs(capsys, tmp_path, monkeypatch):
     readme = (ROOT / "README.md").read_text()
     (block,) = re.findall(r"```python\n(.*?)```", readme, re.S)
+    monkeypatch.chdir(tmp_path)                       # the example writes its files where it runs
     namespace = {}
     exec(compile(block, "README.md", "exec"), namespace)
     assert list(namespace["ik"].q) == pytest.approx([0.1, -0.2, 0.09])
-    assert capsys.readouterr().out.count("\n") >= 2
+    assert capsys.readouterr().out.count("\n") >= 4
+    assert (tmp_path / "torque_map.csv").stat().st_size > 0 and (tmp_path / "psm.html").stat().st_size > 0
+    tmap = namespace["tmap"]
+    assert tmap.sel(roll=10, pitch=-10, joint="pitch").pwm == tmap.effort.pwm[10, 30, 0, 1]

@@ -238,27 +238,3 @@ def test_the_cli_prints_each_warning_once_after_success(tmp_path):
     assert run.stderr.splitlines() == [
         "warning: no C compiler '/nonexistent/cc' found (set CC): CasADi functions run interpreted, slower",
         "warning: no C compiler '/nonexistent/cc' found (set CC): CSV tables are formatted by NumPy, slower"]
-
-
-# --- the library's structure ------------------------------------------------------------------------------
-LIBRARY = [p for p in SOURCE.rglob("*.py") if "simulation" not in p.relative_to(SOURCE).parts]
-NO_LOCAL_IMPORTS = ("identification", "codegen", "export", "visualization", "symbolic", "dynamics", "robustness")
-
-
-@pytest.mark.parametrize("path", LIBRARY, ids=lambda p: str(p.relative_to(SOURCE)))
-def test_no_assert_for_checks(path):
-    assert not [n.lineno for n in ast.walk(ast.parse(path.read_text())) if isinstance(n, ast.Assert)]
-
-
-@pytest.mark.parametrize("package", NO_LOCAL_IMPORTS)
-def test_rcm_kin_imports_at_module_top(package):
-    """In these packages a module imports rcm_kin only at its top (no circles hidden in functions;
-    third-party libraries may still be imported where needed)."""
-    local = []
-    for path in (SOURCE / package).rglob("*.py"):
-        for function in ast.walk(ast.parse(path.read_text())):
-            if isinstance(function, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                local += [f"{path.name}:{n.lineno}" for n in ast.walk(function)
-                          if isinstance(n, ast.ImportFrom) and (n.level or (n.module or "").startswith("rcm_kin"))
-                          or isinstance(n, ast.Import) and any(a.name.startswith("rcm_kin") for a in n.names)]
-    assert not local

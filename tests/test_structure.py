@@ -155,6 +155,22 @@ def test_sizes(module):
     assert not long, f"{module}: functions over {MAX_FUNCTION_LINES} lines: {long}"
 
 
+@pytest.mark.parametrize("module", LIBRARY)
+def test_no_assert_for_checks(module):
+    """Checks raise errors: ``python -O`` removes asserts."""
+    tree = ast.parse(MODULES[module].read_text())
+    assert not [n.lineno for n in ast.walk(tree) if isinstance(n, ast.Assert)], f"{module} checks with assert"
+
+
+@pytest.mark.parametrize("module", [m for m in LIBRARY if top(m) != "cli"])
+def test_the_library_does_not_print(module):
+    """The library warns through ``warnings`` and returns results; the CLI prints."""
+    tree = ast.parse(MODULES[module].read_text())
+    prints = [n.lineno for n in ast.walk(tree)
+              if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "print"]
+    assert not prints, f"{module} prints (lines {prints})"
+
+
 ROBOT_WORDS = ("psm", "mtm", "davinci")
 
 

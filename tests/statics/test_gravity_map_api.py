@@ -61,3 +61,11 @@ def test_the_drive_defaults_to_the_shipped_set():
     np.testing.assert_array_equal(a.effort.pwm, b.effort.pwm)
     with pytest.raises(rk.RcmKinError, match="drive must be DriveParameters"):
         rk.gravity_map(psm, "psm_drive.toml", [0.0], [10.0], [0.1])
+
+
+def test_one_joint_by_name(tmap):
+    both = tmap.sel(roll=10.0, pitch=5.0)
+    pitch = tmap.sel(roll=10.0, pitch=5.0, joint="pitch")
+    assert pitch.pwm == both.pwm[1] and pitch.tau == both.tau[1]
+    with pytest.raises(rk.RcmKinError, match="joint 'elbow' is not an axis of the map"):
+        tmap.sel(roll=10.0, pitch=5.0, joint="elbow")

@@ -73,10 +73,13 @@ def add_greybox(sub) -> None:
 
 def cmd_sysid(args) -> None:
     """One log: its fitted transfer function beside the physics; a folder: one row per pose."""
+    folder = Path(args.log).is_dir()
+    if folder and args.pose:
+        raise RcmKinError("--pose is for one log: a folder's poses are read from its file names")
     model = driven_model(args.params, coulomb=False)
     options = dict(method=args.method, order=args.order, zeros=args.zeros, samples=args.samples,
                    segment=args.segment)
-    if Path(args.log).is_dir():
+    if folder:
         _sysid_folder(args, model, options)
     else:
         _sysid_log(args, model, options)

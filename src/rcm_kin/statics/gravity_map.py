@@ -87,10 +87,16 @@ class GravityMap:
                      for name, values, x in (("pitch", self.pitch_deg, pitch), ("roll", self.roll_deg, roll),
                                              ("insertion", self.insertion, insertion)))
 
-    def sel(self, roll: float, pitch: float, insertion: float | None = None) -> DriveEffort:
-        """The holding effort at one grid pose, by name (deg, deg, m): arrays over the joints
-        (:data:`DRIVEN`)."""
+    def sel(self, roll: float, pitch: float, insertion: float | None = None,
+            joint: str | None = None) -> DriveEffort:
+        """The holding effort at one grid pose, by name (deg, deg, m): arrays over the joints of
+        ``coords["joint"]``, or scalars of one ``joint`` (``"roll"``, ``"pitch"``, ``"insertion"``)."""
         at = self.index(roll, pitch, insertion)
+        if joint is not None:
+            if joint not in DRIVEN:
+                raise RcmKinError(f"joint '{joint}' is not an axis of the map: one of {', '.join(DRIVEN)}",
+                                  parameter="joint")
+            at = at + (DRIVEN.index(joint),)
         return DriveEffort(**{f.name: getattr(self.effort, f.name)[at] for f in fields(DriveEffort)})
 
     def write(self, path: str | Path) -> Path:
