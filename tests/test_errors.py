@@ -238,3 +238,21 @@ def test_the_cli_prints_each_warning_once_after_success(tmp_path):
     assert run.stderr.splitlines() == [
         "warning: no C compiler '/nonexistent/cc' found (set CC): CasADi functions run interpreted, slower",
         "warning: no C compiler '/nonexistent/cc' found (set CC): CSV tables are formatted by NumPy, slower"]
+
+
+@pytest.mark.parametrize("edit, table, key", [
+    (lambda t: t.replace("\n[roll]\n", "\n[roll]\nbogus = 1.0\n", 1), "roll", "bogus"),
+    (lambda t: t.replace("\n[drive_train.roll]\n", "\n[drive_train.elbow]\n", 1), "drive_train.elbow", None),
+    (lambda t: t + "\n[drive_train.pitch]\nnot_a_term = 1.0\n", "drive_train.pitch", "not_a_term"),
+])
+def test_every_schema_violation_is_a_parameter_file_error_with_its_fields(tmp_path, edit, table, key):
+    from rcm_kin.dynamics.drive import DEFAULT_PARAMETERS, load_drive_parameters
+
+    text = DEFAULT_PARAMETERS.read_text()
+    path = tmp_path / "drive.toml"
+    edited = edit(text)
+    assert edited != text
+    path.write_text(edited)
+    with pytest.raises(ParameterFileError) as raised:
+        load_drive_parameters(path)
+    assert (raised.value.path, raised.value.table, raised.value.key) == (path, table, key)

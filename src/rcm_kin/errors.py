@@ -121,15 +121,32 @@ def warn(message: str, category: type[Warning] = RcmKinWarning) -> None:
     warnings.warn(message, category, stacklevel=level + 1)
 
 
+def recording_warnings(function, *args, **kwargs) -> tuple[object, list[tuple[type[Warning], str]]]:
+    """``function(*args, **kwargs)`` and the warnings it raised, as ``(category, message)`` pairs:
+    what a worker process (a report piece, a Dask batch) sends back with its result, since the
+    caller's record of warnings does not reach into another process. :func:`reissue` raises them
+    again where the result arrives."""
+    with warnings.catch_warnings(record=True) as caught:     # the filters in force decide what is recorded
+        value = function(*args, **kwargs)
+    return value, [(w.category, str(w.message)) for w in caught]
+
+
+def reissue(records) -> None:
+    """Raise again, in this process, the warnings :func:`recording_warnings` recorded in another."""
+    for category, message in records:
+        warn(message, category)
+
+
 def _inside(frame) -> bool:
     name = frame.f_globals.get("__name__", "")
     return name == "rcm_kin" or name.startswith("rcm_kin.")
 
 
-def read_toml(path: Path, what: str) -> dict:
-    """The parsed TOML file ``path``; a missing or malformed file is an RcmKinError naming ``what``."""
+def read_toml(path: Path, what: str, text: str | None = None) -> dict:
+    """The parsed TOML file ``path`` (or ``text``, already read from it); a missing or malformed
+    file is an RcmKinError naming ``what``."""
     try:
-        return tomllib.loads(Path(path).read_text())
+        return tomllib.loads(Path(path).read_text() if text is None else text)
     except FileNotFoundError:
         raise RcmKinError(f"no {what} at {path}") from None
     except OSError as exc:

@@ -20,7 +20,7 @@ from typing import Callable, Iterator, Sequence
 
 from tqdm import tqdm
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, recording_warnings, reissue
 
 CONNECT_SECONDS = 10.0      # to reach an existing scheduler and hear it answer
 BATCHES_PER_WORKER = 4      # default batch size: about this many batches per worker, for balance
@@ -106,10 +106,14 @@ def map_batches(client, function: Callable, batches: list, progress: bool = True
     finishes (done = how many have)."""
     from distributed import as_completed
 
-    futures = client.map(function, batches, pure=False, **shared)
+    futures = client.map(recording_warnings, [function] * len(batches), batches, pure=False, **shared)
     with tqdm(total=len(futures), desc=desc, unit="batch", file=sys.stderr, disable=not progress) as bar:
         for done, _ in enumerate(as_completed(futures), start=1):
             bar.update()
             if on_batch:
                 on_batch(done)
-    return client.gather(futures)
+    results = []
+    for value, raised in client.gather(futures):      # the workers' warnings, raised here
+        reissue(raised)
+        results.append(value)
+    return results

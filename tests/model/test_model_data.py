@@ -94,3 +94,28 @@ def test_two_threads_do_not_share_scratch_data():
         t.join()
     assert seen["a"] is not seen["b"] and seen["a"].tree is not seen["b"].tree
     assert not errors, f"{len(errors)} poses computed wrong under two threads"
+
+
+def test_a_workspace_of_another_robot_or_without_its_loops_is_refused():
+    psm, mtm = rk.load_robot("psm"), rk.load_robot("mtm")
+    q = [0.1, -0.2, 0.09, 0, 0, 0, 0]
+    loopless = rk.RobotData(psm.tree.createData(), psm.reduced.createData(), ())
+    with pytest.raises(rk.RcmKinError, match="not a workspace of psm"):
+        rk.forward_kinematics(psm, q, data=loopless)
+    with pytest.raises(rk.RcmKinError, match="not a workspace of psm"):
+        rk.forward_kinematics(psm, q, data=mtm.create_data())
+    with pytest.raises(rk.RcmKinError, match="data must be this robot's RobotData"):
+        rk.gravity_torque(psm, q, data=psm.tree.createData())
+
+
+def test_the_constrained_gravity_works_in_the_callers_workspace():
+    """Loop solve, constraint Jacobian and projection all in the caller's data: the thread's own
+    workspace is left as it was."""
+    psm = rk.load_robot("psm")
+    mine = psm.create_data()
+    rk.forward_kinematics(psm, [0.0] * 7)                           # the thread's workspace at q = 0
+    before = [m.copy() for m in psm.scratch.tree.oMi]
+    q = [0.2, -0.3, 0.1, 0, 0, 0, 0]
+    tau = rk.gravity_torque(psm, q, method="constrained", data=mine)
+    assert all(np.array_equal(a.homogeneous, b.homogeneous) for a, b in zip(before, psm.scratch.tree.oMi))
+    np.testing.assert_allclose(tau, rk.gravity_torque(psm, q, method="reduced"), atol=1e-9)

@@ -86,3 +86,28 @@ def test_a_certificate_carries_its_sampling_check():
     c = find_certificate(program)
     assert c.B and c.check == check_by_sampling(c.B, program)
     assert c.feasible == c.check.passed
+
+
+def _warns(text):
+    import warnings
+
+    from rcm_kin.errors import CompilerFallbackWarning
+
+    warnings.warn(text, CompilerFallbackWarning)
+    return text
+
+
+def test_a_pieces_warnings_reach_the_caller():
+    """A piece runs in a forked worker, where the caller's record of warnings does not reach: its
+    warnings come back with its result and are raised again in the caller."""
+    import warnings
+
+    from rcm_kin.errors import CompilerFallbackWarning
+    from rcm_kin.report import Job, run_jobs
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        results = run_jobs([Job("a", _warns, ("from a worker",)), Job("b", _warns, ("from another",))], 2)
+    assert {r.value for r in results.values()} == {"from a worker", "from another"}
+    assert sorted(str(w.message) for w in caught if w.category is CompilerFallbackWarning) == [
+        "from a worker", "from another"]

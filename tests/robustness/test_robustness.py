@@ -559,3 +559,26 @@ def test_weights_sweep_at_the_default_budgets_is_the_shipped_schedule(params):
     assert row.stable and row.spectral_radius < 1.0
     greedy, = weights_batch([(1e-9, 1.0)], params, duration=DURATION, points=2)   # an error budget no loop meets
     assert greedy.spectral_radius > 1.0 and not greedy.stable
+
+
+def test_a_workers_warnings_reach_the_caller_once_each(capfd):
+    """A Dask worker's warnings come back with its batch and are raised again in the caller (the
+    CLI prints each as one warning line), not printed raw by the worker."""
+    import warnings
+
+    from rcm_kin.errors import CompilerFallbackWarning
+    from rcm_kin.parallel import dask_client, map_batches
+
+    def warn_and_sum(batch):    # pickled by value: a local function
+        warnings.warn(f"batch of {len(batch)}", CompilerFallbackWarning)
+        return sum(batch)
+
+    with dask_client(workers=1) as client:
+        capfd.readouterr()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert map_batches(client, warn_and_sum, [[1, 2], [3]], progress=False) == [3, 3]
+        err = capfd.readouterr().err
+    assert sorted(str(w.message) for w in caught if w.category is CompilerFallbackWarning) == [
+        "batch of 1", "batch of 2"]
+    assert "CompilerFallbackWarning" not in err

@@ -69,3 +69,20 @@ def test_one_joint_by_name(tmap):
     assert pitch.pwm == both.pwm[1] and pitch.tau == both.tau[1]
     with pytest.raises(rk.RcmKinError, match="joint 'elbow' is not an axis of the map"):
         tmap.sel(roll=10.0, pitch=5.0, joint="elbow")
+
+
+@pytest.mark.parametrize("change, message", [
+    (dict(roll_deg=[]), "`roll_deg` must be a non-empty list of finite numbers"),
+    (dict(pitch_deg=[np.nan, 0.0]), "`pitch_deg` must be a non-empty list of finite numbers"),
+    (dict(insertion="far"), "`insertion` must be numbers"),
+])
+def test_bad_grids_are_refused_by_name(change, message):
+    arguments = dict(roll_deg=[0.0], pitch_deg=[0.0], insertion=0.08) | change
+    with pytest.raises(rk.RcmKinError, match=message) as raised:
+        rk.gravity_map(rk.load_robot("psm"), **arguments)
+    assert raised.value.parameters == tuple(change)
+
+
+def test_a_robot_without_the_driven_joints_is_refused():
+    with pytest.raises(rk.RcmKinError, match="mtm has no roll, pitch, insertion"):
+        rk.gravity_map(rk.load_robot("mtm"), roll_deg=[0.0], pitch_deg=[0.0])

@@ -98,10 +98,13 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
     for joint, limit in zip(DRIVEN, PWM_LIMIT):
         entry = raw.get(joint)
         if not isinstance(entry, dict) or set(required) - set(entry):
-            raise RcmKinError(f"{path}: [{joint}] needs {', '.join(required)}")
+            absent = sorted(set(required) - set(entry)) if isinstance(entry, dict) else list(required)
+            raise ParameterFileError(f"{path}: [{joint}] needs {', '.join(required)}", path=path, table=joint,
+                                     key=absent[0] if absent else None)
         unknown = sorted(set(entry) - set(names) - set(FIRMWARE_FIELDS))
         if unknown:
-            raise RcmKinError(f"{path}: [{joint}] has unknown keys {', '.join(unknown)} (known: {', '.join(names)})")
+            raise ParameterFileError(f"{path}: [{joint}] has unknown keys {', '.join(unknown)} "
+                                     f"(known: {', '.join(names)})", path=path, table=joint, key=unknown[0])
         values = check_table(entry, JOINT_DRIVE, path, joint)
         joints[joint] = JointDrive(**{n: values[n] for n in names if n in values}, pwm_limit=float(limit))
         legacy = values.get("pwm_limit", float(limit))
@@ -112,7 +115,8 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
                                      path=path, table=joint, key="pwm_limit", parameter="pwm_limit")
     offsets = {}
     if not isinstance(raw.get("gravity_offsets", {}), dict):
-        raise RcmKinError(f"{path}: gravity_offsets must be a table [gravity_offsets] of 3-number lists (kg m)")
+        raise ParameterFileError(f"{path}: gravity_offsets must be a table [gravity_offsets] of 3-number lists (kg m)",
+                                 path=path, table="gravity_offsets")
     for link, value in raw.get("gravity_offsets", {}).items():
         offsets[link] = np.array(check_offset(value, path, link))
     return DriveParameters(joints, offsets, str(path), _drive_train(path, raw.get("drive_train", {})))
@@ -124,17 +128,21 @@ def _drive_train(path: Path, raw) -> dict[str, AxisFriction]:
     finite, >= 0 but for the presliding slope (|s| <= 20 /rad), and a Stribeck velocity > 0."""
     known = [f.name for f in fields(AxisFriction)]
     if not isinstance(raw, dict):
-        raise RcmKinError(f"{path}: drive_train must be tables [drive_train.<joint>] ({', '.join(DRIVEN)})")
+        raise ParameterFileError(f"{path}: drive_train must be tables [drive_train.<joint>] ({', '.join(DRIVEN)})",
+                                 path=path, table="drive_train")
     out = {}
     for joint, entry in raw.items():
         if joint not in DRIVEN:
-            raise RcmKinError(f"{path}: [drive_train.{joint}] is not a driven joint ({', '.join(DRIVEN)})")
+            raise ParameterFileError(f"{path}: [drive_train.{joint}] is not a driven joint ({', '.join(DRIVEN)})",
+                                     path=path, table=f"drive_train.{joint}")
         if not isinstance(entry, dict):
-            raise RcmKinError(f"{path}: drive_train.{joint} must be a table [drive_train.{joint}] of parameters")
+            raise ParameterFileError(f"{path}: drive_train.{joint} must be a table [drive_train.{joint}] of parameters",
+                                     path=path, table=f"drive_train.{joint}")
         unknown = sorted(set(entry) - set(known))
         if unknown:
-            raise RcmKinError(f"{path}: [drive_train.{joint}] has unknown keys {', '.join(unknown)} "
-                              f"(known: {', '.join(known)})")
+            raise ParameterFileError(f"{path}: [drive_train.{joint}] has unknown keys {', '.join(unknown)} "
+                                     f"(known: {', '.join(known)})", path=path, table=f"drive_train.{joint}",
+                                     key=unknown[0])
         out[joint] = AxisFriction(**check_table(entry, DRIVE_TRAIN, path, f"drive_train.{joint}", DRIVE_TRAIN_DEFAULT))
     return out
 

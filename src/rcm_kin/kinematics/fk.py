@@ -23,7 +23,7 @@ def frame_placement(robot: Robot, q: np.ndarray, frame: str, data: RobotData | N
     """Placement of one frame in the base frame at actuated ``q`` (reduced model); ``data``: the
     caller's workspace (:meth:`Robot.create_data`), default this thread's own."""
     fid = robot.frame_id(frame)
-    reduced_data = (data or robot.scratch).reduced
+    reduced_data = robot.workspace(data).reduced
     pin.forwardKinematics(robot.reduced, reduced_data, robot.to_reduced(q))
     return pin.updateFramePlacement(robot.reduced, reduced_data, fid).copy()
 
@@ -34,7 +34,7 @@ def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None,
 
     ``data``: the caller's workspace (:meth:`Robot.create_data`); default this thread's own."""
     q = robot.check_q(q)
-    data = data or robot.scratch
+    data = robot.workspace(data)
     frames = robot.description.frames if frames is None else frames
     ids = [robot.frame_id(name) for name in frames]
     pin.forwardKinematics(robot.reduced, data.reduced, robot.to_reduced(q))

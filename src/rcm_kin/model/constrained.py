@@ -63,10 +63,10 @@ def build_constraint_models(tree: pin.Model, loops: tuple[LoopClosure, ...]) -> 
 def closure_residual(robot: Robot, q_tree: np.ndarray, data: RobotData | None = None) -> np.ndarray:
     """Stacked independent loop-closure errors at ``q_tree`` (m); empty for a serial robot.
     ``data``: the caller's workspace, default this thread's own."""
-    data = data or robot.scratch
+    data = robot.workspace(data)
     pin.forwardKinematics(robot.tree, data.tree, q_tree)
     parts = []
-    for c, c_data in zip(robot.constraints, data.constraints):
+    for c, c_data in zip(robot.constraints, data.constraints, strict=True):
         c.model.calc(robot.tree, data.tree, c_data)
         parts.append(c.rows @ c_data.constraint_position_error)
     return np.concatenate(parts) if parts else np.zeros(0)
@@ -74,18 +74,18 @@ def closure_residual(robot: Robot, q_tree: np.ndarray, data: RobotData | None = 
 
 def constraint_jacobian(robot: Robot, q_tree: np.ndarray, data: RobotData | None = None) -> np.ndarray:
     """``d closure_residual / d q_tree``: (independent rows) x (tree nv)."""
-    workspace = data or robot.scratch
+    workspace = robot.workspace(data)
     model, tree_data = robot.tree, workspace.tree
     pin.computeJointJacobians(model, tree_data, q_tree)
     blocks = []
-    for c, c_data in zip(robot.constraints, workspace.constraints):
+    for c, c_data in zip(robot.constraints, workspace.constraints, strict=True):
         c.model.calc(model, tree_data, c_data)
         blocks.append(c.rows @ c.model.jacobian(model, tree_data, c_data))
     return np.vstack(blocks) if blocks else np.zeros((0, model.nv))
 
 
 def solve_loops(robot: Robot, q: np.ndarray, q_tree_guess: np.ndarray | None = None,
-                tol: float = 1e-13, max_iter: int = 50) -> np.ndarray:
+                tol: float = 1e-13, max_iter: int = 50, data: RobotData | None = None) -> np.ndarray:
     """Passive joints that close every loop, given actuated ``q`` (Newton on the residual).
 
     Returns the open-tree configuration. The default guess puts every passive joint at 0.
@@ -94,16 +94,16 @@ def solve_loops(robot: Robot, q: np.ndarray, q_tree_guess: np.ndarray | None = N
     q_tree[robot.tree_q_actuated] = q
     passive = robot.tree_q_passive
     for _ in range(max_iter):
-        r = closure_residual(robot, q_tree)
+        r = closure_residual(robot, q_tree, data)
         if r.size == 0 or np.max(np.abs(r)) < tol:
             return q_tree
-        J_p = constraint_jacobian(robot, q_tree)[:, passive]
+        J_p = constraint_jacobian(robot, q_tree, data)[:, passive]
         q_tree[passive] -= np.linalg.lstsq(J_p, r, rcond=None)[0]
     raise RcmKinError(f"the loops of {robot.name} do not close at q = {np.round(q, 6).tolist()} "
                       f"(residual {np.max(np.abs(r)):.2e} m after {max_iter} Newton steps)")
 
 
-def actuation_jacobian(robot: Robot, q_tree: np.ndarray) -> np.ndarray:
+def actuation_jacobian(robot: Robot, q_tree: np.ndarray, data: RobotData | None = None) -> np.ndarray:
     """``S = d q_tree / d q`` on the constraint manifold: (tree nv) x (actuated).
 
     Rows of actuated joints are the identity; passive rows are ``-J_p^+ J_a``.
@@ -111,13 +111,14 @@ def actuation_jacobian(robot: Robot, q_tree: np.ndarray) -> np.ndarray:
     S = np.zeros((robot.tree.nv, robot.nq))
     S[robot.tree_q_actuated, np.arange(robot.nq)] = 1.0
     if robot.constraints:
-        J = constraint_jacobian(robot, q_tree)
+        J = constraint_jacobian(robot, q_tree, data)
         S[robot.tree_q_passive] = -np.linalg.lstsq(J[:, robot.tree_q_passive], J[:, robot.tree_q_actuated],
                                                    rcond=None)[0]
     return S
 
 
-def project_torques(robot: Robot, q_tree: np.ndarray, tau_tree: np.ndarray) -> ProjectedTorques:
+def project_torques(robot: Robot, q_tree: np.ndarray, tau_tree: np.ndarray,
+                    data: RobotData | None = None) -> ProjectedTorques:
     """Actuator forces that supply the open tree's generalised forces ``tau_tree``.
 
     Passive joints carry no actuator: the loop forces ``lambda`` take their share,
@@ -126,15 +127,15 @@ def project_torques(robot: Robot, q_tree: np.ndarray, tau_tree: np.ndarray) -> P
     tau_tree = np.asarray(tau_tree, dtype=float)
     if not robot.constraints:
         return ProjectedTorques(tau_tree[robot.tree_q_actuated], np.zeros(0))
-    J = constraint_jacobian(robot, q_tree)
+    J = constraint_jacobian(robot, q_tree, data)
     lam = np.linalg.lstsq(J[:, robot.tree_q_passive].T, tau_tree[robot.tree_q_passive], rcond=None)[0]
     tau = tau_tree[robot.tree_q_actuated] - J[:, robot.tree_q_actuated].T @ lam
     return ProjectedTorques(tau, lam)
 
 
-def mass_matrix(robot: Robot, q_tree: np.ndarray) -> np.ndarray:
+def mass_matrix(robot: Robot, q_tree: np.ndarray, data: RobotData | None = None) -> np.ndarray:
     """Joint-space inertia in actuated coordinates, ``S^T M_tree S`` (kg m^2, kg)."""
-    S = actuation_jacobian(robot, q_tree)
-    M = pin.crba(robot.tree, robot.tree_data, q_tree, pin.Convention.WORLD)
+    S = actuation_jacobian(robot, q_tree, data)
+    M = pin.crba(robot.tree, robot.workspace(data).tree, q_tree, pin.Convention.WORLD)
     M = np.triu(M) + np.triu(M, 1).T
     return S.T @ M @ S

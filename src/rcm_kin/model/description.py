@@ -82,10 +82,11 @@ def _text(entry: dict, key: str, where: str) -> str:
     return value
 
 
-def read_description(path: str | Path) -> RobotDescription:
-    """Read and check a sidecar file; errors name the file and the entry at fault."""
+def read_description(path: str | Path, text: str | None = None) -> RobotDescription:
+    """Read and check a sidecar file (``text``: its content, already read); errors name the file
+    and the entry at fault."""
     path = Path(path)
-    raw = read_toml(path, "robot description")
+    raw = read_toml(path, "robot description", text)
 
     where = str(path)
     urdf = path.parent / _text(raw, "urdf", where)

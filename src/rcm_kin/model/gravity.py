@@ -32,14 +32,14 @@ def gravity_torque(robot: Robot, q, method: str = "reduced", data: RobotData | N
     ``data``: the caller's workspace (:meth:`Robot.create_data`), default this thread's own.
     """
     q = robot.check_q(q)
-    data = data or robot.scratch
+    data = robot.workspace(data)
     if method == "reduced":
         g = pin.computeGeneralizedGravity(robot.reduced, data.reduced, robot.to_reduced(q))
         return robot.from_reduced(g).copy()
     if method == "constrained":
-        q_tree = constrained.solve_loops(robot, q)
+        q_tree = constrained.solve_loops(robot, q, data=data)
         g_tree = pin.computeGeneralizedGravity(robot.tree, data.tree, q_tree)
-        return constrained.project_torques(robot, q_tree, g_tree).tau
+        return constrained.project_torques(robot, q_tree, g_tree, data).tau
     raise RcmKinError(f"unknown gravity method '{method}': use 'reduced' or 'constrained'")
 
 

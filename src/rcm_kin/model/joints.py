@@ -13,7 +13,7 @@ def joint_axes_world(robot: Robot, q: np.ndarray, data: RobotData | None = None)
     """Unit axis of every open-tree joint in the base frame at actuated ``q``: the rotation
     axis of a revolute joint, the direction of motion of a prismatic one."""
     q_tree = tree_configuration(robot, q)
-    model, tree_data = robot.tree, (data or robot.scratch).tree
+    model, tree_data = robot.tree, robot.workspace(data).tree
     pin.computeJointJacobians(model, tree_data, q_tree)
     axes = {}
     for jid in range(1, model.njoints):

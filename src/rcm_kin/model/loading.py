@@ -54,9 +54,12 @@ def _joint_q_index(model: pin.Model, name: str, where: str) -> int:
     return joint.idx_q
 
 
-def _urdf_without(description: RobotDescription, links: tuple[str, ...]) -> str:
-    """The URDF text with the mass of ``links`` removed (their geometry stays)."""
-    root = ET.parse(description.urdf).getroot()
+def _urdf_without(description: RobotDescription, links: tuple[str, ...], text: str) -> str:
+    """The URDF ``text`` with the mass of ``links`` removed (their geometry stays)."""
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise RcmKinError(f"{description.urdf}: not valid XML ({exc})") from None
     found = set()
     for link in root.iter("link"):
         if link.get("name") in links:
@@ -68,15 +71,32 @@ def _urdf_without(description: RobotDescription, links: tuple[str, ...]) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-def build_robot(description: RobotDescription, counterweights: bool = True) -> Robot:
-    """Build and check the open-tree, constrained and reduced models of one description.
+def _read_bytes(path: Path, what: str) -> bytes:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read()
+    except OSError as exc:
+        raise RcmKinError(f"cannot read the {what} {path}: {exc.strerror}") from None
+
+
+def _text(data: bytes, path: Path) -> str:
+    try:
+        return data.decode()
+    except UnicodeDecodeError as exc:
+        raise RcmKinError(f"{path}: not UTF-8 text ({exc})") from None
+
+
+def build_robot(description: RobotDescription, counterweights: bool = True, urdf_text: str | None = None) -> Robot:
+    """Build and check the open-tree, constrained and reduced models of one description (the URDF
+    from ``urdf_text`` when given, else read from ``description.urdf``).
 
     ``counterweights=False`` drops the mass of the sidecar's counterweight links."""
     where = str(description.urdf)
-    if counterweights:
-        tree = pin.buildModelFromUrdf(str(description.urdf))
-    else:
-        tree = pin.buildModelFromXML(_urdf_without(description, description.counterweights))
+    if urdf_text is None:
+        urdf_text = _text(_read_bytes(description.urdf, "URDF"), description.urdf)
+    if not counterweights:
+        urdf_text = _urdf_without(description, description.counterweights, urdf_text)
+    tree = pin.buildModelFromXML(urdf_text)
     tree.gravity.linear = GRAVITY
     if not tree.check(tree.createData()):
         raise RcmKinError(f"{where}: Pinocchio's model check failed")
@@ -139,13 +159,6 @@ def _sidecar_path(name: str) -> Path:
     raise RcmKinError(f"unknown robot '{name}'; choose one of: {', '.join(robot_names())}")
 
 
-def _digest(path: Path) -> str:
-    """SHA-256 of the file's bytes (a missing file is left to the reader's own error)."""
-    try:
-        with open(path, "rb") as fh:
-            return hashlib.sha256(fh.read()).hexdigest()
-    except OSError:
-        return "<unreadable>"
 
 
 def _bounded_put(cache: dict, key, value):
@@ -158,12 +171,16 @@ def _bounded_put(cache: dict, key, value):
 
 
 def _description(path: Path) -> tuple[RobotDescription, str]:
-    """The sidecar at ``path`` read (or the one read before from the same bytes), and its digest."""
-    digest = _digest(path)
+    """The sidecar at ``path`` (the one parsed before from the same bytes, or these bytes parsed),
+    and the digest of its bytes: one read of the file gives both."""
+    if not path.is_file():
+        raise RcmKinError(f"no robot description at {path}")
+    data = _read_bytes(path, "robot description")
+    digest = hashlib.sha256(data).hexdigest()
     key = (os.path.abspath(path), digest)
     description = _DESCRIPTIONS.get(key)
     if description is None or not description.urdf.exists():
-        description = _bounded_put(_DESCRIPTIONS, key, read_description(path))
+        description = _bounded_put(_DESCRIPTIONS, key, read_description(path, _text(data, path)))
     return description, digest
 
 
@@ -176,8 +193,9 @@ def load_robot(name: str | Path, counterweights: bool = True) -> Robot:
     (:meth:`Robot.create_data`)."""
     path = _sidecar_path(name)
     description, sidecar = _description(path)
-    key = (bool(counterweights), sidecar, str(description.urdf), _digest(description.urdf))
+    urdf = _read_bytes(description.urdf, "URDF")           # read once: its digest and its model
+    key = (bool(counterweights), sidecar, str(description.urdf), hashlib.sha256(urdf).hexdigest())
     robot = _CACHE.get(key)
     if robot is None:
-        robot = _bounded_put(_CACHE, key, build_robot(description, counterweights))
+        robot = _bounded_put(_CACHE, key, build_robot(description, counterweights, _text(urdf, description.urdf)))
     return robot

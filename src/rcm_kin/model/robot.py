@@ -30,7 +30,7 @@ class RobotData:
 
     tree: pin.Data
     reduced: pin.Data
-    constraints: tuple = ()
+    constraints: tuple              # pin.PointAnchorConstraintData, one per loop, in the robot's order
 
 
 @dataclass(frozen=True)
@@ -73,6 +73,19 @@ class Robot:
         data = getattr(self._threads, "data", None)
         if data is None:
             data = self._threads.data = self.create_data()
+        return data
+
+    def workspace(self, data: RobotData | None = None) -> RobotData:
+        """``data`` if it is a workspace of this robot (else an error), or this thread's own."""
+        if data is None:
+            return self.scratch
+        if not isinstance(data, RobotData):
+            raise RcmKinError(f"data must be this robot's RobotData (robot.create_data()), got {type(data).__name__}",
+                              parameter="data")
+        if (len(data.tree.oMi) != self.tree.njoints or len(data.reduced.oMi) != self.reduced.njoints
+                or len(data.constraints) != len(self.constraints)):
+            raise RcmKinError(f"data is not a workspace of {self.name}: make it with robot.create_data()",
+                              parameter="data")
         return data
 
     @property

@@ -26,7 +26,7 @@ from concurrent.futures import as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
-from rcm_kin.errors import RcmKinError, output_folder
+from rcm_kin.errors import RcmKinError, output_folder, recording_warnings, reissue
 
 
 def write_report(out: str | Path, data: str | Path | None = None, map_points: int = 61,
@@ -74,6 +74,7 @@ class JobResult:
     value: object
     seconds: float      # wall time in the worker
     worker: int         # the worker's process id
+    warnings: tuple = ()    # (category, message) of each warning the piece raised
 
 
 def report_jobs(out: Path, data, map_points: int) -> list[Job]:
@@ -115,8 +116,8 @@ def report_jobs(out: Path, data, map_points: int) -> list[Job]:
 
 def _timed(function: Callable, arguments: tuple) -> JobResult:
     start = time.perf_counter()
-    value = function(*arguments)
-    return JobResult(value, time.perf_counter() - start, os.getpid())
+    value, raised = recording_warnings(function, *arguments)
+    return JobResult(value, time.perf_counter() - start, os.getpid(), tuple(raised))
 
 
 def run_jobs(jobs: list[Job], workers: int, progress: bool = False) -> dict[str, JobResult]:
@@ -135,6 +136,7 @@ def run_jobs(jobs: list[Job], workers: int, progress: bool = False) -> dict[str,
             try:
                 for future in as_completed(futures):
                     results[futures[future]] = future.result()
+                    reissue(results[futures[future]].warnings)   # a forked worker's warnings reach the caller
                     bar.set_postfix_str(futures[future])
                     bar.update()
             except BaseException:

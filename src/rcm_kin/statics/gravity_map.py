@@ -156,8 +156,12 @@ def gravity_map(robot: Robot, drive: DriveParameters | None = None, roll_deg=DEF
         drive = load_drive_parameters()
     elif not isinstance(drive, DriveParameters):
         raise RcmKinError(f"drive must be DriveParameters (load_drive_parameters(path)), got {type(drive).__name__}")
-    roll_deg, pitch_deg, insertion = (np.atleast_1d(np.asarray(x, dtype=float))
-                                      for x in (roll_deg, pitch_deg, insertion))
+    missing = [j for j in DRIVEN if j not in robot.actuated]
+    if missing:
+        raise RcmKinError(f"a holding-effort map is over the driven joints {', '.join(DRIVEN)}; {robot.name} has no "
+                          f"{', '.join(missing)}", parameter="robot")
+    roll_deg, pitch_deg, insertion = (_grid(x, name) for x, name in
+                                      ((roll_deg, "roll_deg"), (pitch_deg, "pitch_deg"), (insertion, "insertion")))
     for name, values, unit in (("roll", np.radians(roll_deg), "deg"), ("pitch", np.radians(pitch_deg), "deg"),
                                ("insertion", insertion, "m")):
         i = robot.actuated.index(name)
@@ -173,6 +177,18 @@ def gravity_map(robot: Robot, drive: DriveParameters | None = None, roll_deg=DEF
     tau = driven_gravity(robot, drive, Q, progress).reshape(shape)
     del Q
     return GravityMap(roll_deg, pitch_deg, insertion, drive_effort_blocks(drive, tau))
+
+
+def _grid(values, name: str) -> np.ndarray:
+    """One axis of a map's grid: a non-empty vector of finite numbers, or an error naming it."""
+    try:
+        grid = np.atleast_1d(np.asarray(values, dtype=float))
+    except (TypeError, ValueError):
+        raise RcmKinError(f"`{name}` must be numbers, got {str(values)[:60]!r}", parameter=name) from None
+    if grid.ndim != 1 or grid.size == 0 or not np.all(np.isfinite(grid)):
+        raise RcmKinError(f"`{name}` must be a non-empty list of finite numbers, got {grid.tolist()[:8]}",
+                          parameter=name)
+    return grid
 
 
 def drive_effort_blocks(drive: DriveParameters, tau: np.ndarray, block: int = 1 << 16) -> DriveEffort:
