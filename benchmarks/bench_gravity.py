@@ -2,7 +2,7 @@
 the ``rcm-kin torque-map`` command end to end at 1001 x 1001 next to its maths alone:
 
 - the gravity grid: the driven model's gravity compiled to C and mapped over the 301 x 301
-  poses (:func:`rcm_kin.statics.gravity_map.driven_gravity`), per pose;
+  poses (:func:`rcm_kin.statics.maps.driven_gravity`), per pose;
 - the whole map (gravity and the drive model: torque, current, voltage, PWM), per pose;
 - the NumPy batch (:func:`rcm_kin.model.gravity.gravity_batch`), the path before compiling;
 - the plain call: ``pin.computeGeneralizedGravity`` on the reduced model (the closed chain as
@@ -43,7 +43,7 @@ from rcm_kin import load_robot  # noqa: E402
 from rcm_kin.cli import main as cli_main  # noqa: E402
 from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
 from rcm_kin.model.gravity import gravity_batch  # noqa: E402
-from rcm_kin.statics.gravity_map import driven_gravity, gravity_map  # noqa: E402
+from rcm_kin.statics.maps import driven_gravity, gravity_map  # noqa: E402
 
 
 def poses(n: int) -> np.ndarray:

@@ -111,7 +111,7 @@ def test_joint_limit_error_carries_joints_values_and_limits(psm):
 def test_work_limit_errors_carry_what_was_asked_and_the_limit():
     from rcm_kin.robustness.work import MAX_POSES as SWEEP_POSES
     from rcm_kin.robustness.work import check_counterweight_sweep
-    from rcm_kin.statics.gravity_map import MAX_POSES, check_map_size
+    from rcm_kin.statics.maps import MAX_POSES, check_map_size
 
     check_map_size(MAX_POSES)
     with pytest.raises(WorkLimitError, match="beyond the 1,002,001") as caught:

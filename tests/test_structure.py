@@ -201,6 +201,8 @@ def test_each_subpackage_lists_its_faces(package):
     assert len(names) <= 12, f"rcm_kin.{package} lists {len(names)} names (at most a dozen)"
     for name in names:
         assert getattr(mod, name) is not None
+    shadowed = sorted(set(names) & {p.stem for p in (PACKAGE / package).glob("*.py")})
+    assert not shadowed, f"rcm_kin.{package} lists {shadowed}, which are also its modules' names"
 
 
 def test_the_public_api_is_lazy_and_complete():

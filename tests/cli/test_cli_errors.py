@@ -172,7 +172,7 @@ def test_bad_log_rows_in_the_library_are_a_log_data_error(tmp_path):
 
 
 def test_work_limits_in_the_library(psm, params):
-    from rcm_kin.statics.gravity_map import MAX_POSES, gravity_map
+    from rcm_kin.statics.maps import MAX_POSES, gravity_map
 
     with pytest.raises(WorkLimitError, match=r"beyond the 1,002,001 \(1001 x 1001\)"):
         gravity_map(psm, params, np.zeros(MAX_POSES + 1), [0.0], [0.08])

@@ -21,7 +21,7 @@ from rcm_kin.kinematics.ik import inverse_kinematics
 from rcm_kin.model import joint_table, load_robot
 from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.safety.sos import poly_eval, poly_text
-from rcm_kin.statics.gravity_map import holding_effort
+from rcm_kin.statics.maps import holding_effort
 
 CLI_MODULES = sorted(Path(rcm_kin.cli.__file__).parent.glob("*.py"))
 

@@ -18,7 +18,7 @@ from rcm_kin.codegen.psm_model import export_c
 from rcm_kin.dynamics.drive import load_drive_parameters
 from rcm_kin.dynamics.state_space import holding_pwm
 from rcm_kin.errors import RcmKinError
-from rcm_kin.statics.gravity_map import holding_effort
+from rcm_kin.statics.maps import holding_effort
 
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror"]
 COMPILER = shutil.which(os.environ.get("CC") or "cc")

@@ -15,7 +15,7 @@ from rcm_kin.dynamics.drive import DriveParameters, JointDrive, drive_effort, lo
 from rcm_kin.model import constrained
 from rcm_kin.model.gravity import gravity_batch, gravity_torque, point_mass_gravity_batch
 from rcm_kin.statics.counterweights import design_counterweights, workspace_grid
-from rcm_kin.statics.gravity_map import gravity_map, parse_range
+from rcm_kin.statics.maps import gravity_map, parse_range
 
 TOL = 1e-9
 
@@ -254,7 +254,7 @@ def test_torque_map_npz_holds_the_csv_numbers(tmp_path, capsys):
 def test_write_npz_writes_the_path_it_returns(tmp_path):
     """Whatever the suffix, the file is the one named and returned (np.savez alone would append
     ".npz" to another), and it loads as the table."""
-    from rcm_kin.statics.gravity_map import gravity_map, table_header, write_npz
+    from rcm_kin.statics.maps import gravity_map, table_header, write_npz
 
     gmap = gravity_map(load_robot("psm"), load_drive_parameters(), [0.0, 10.0], [0.0], [0.1])
     path = write_npz(gmap, tmp_path / "map.bin")
@@ -320,7 +320,7 @@ def test_not_a_telemetry_log(tmp_path, capsys):
 def test_compiled_map_equals_numpy_gravity_and_blockwise_drive(psm, params):
     """The map's compiled driven gravity against the NumPy batch (independent code) at 1e-12,
     and the drive model in blocks against one call."""
-    from rcm_kin.statics.gravity_map import drive_effort_blocks, driven_gravity
+    from rcm_kin.statics.maps import drive_effort_blocks, driven_gravity
 
     rng = np.random.default_rng(3)
     i = [psm.actuated.index(j) for j in ("roll", "pitch", "insertion")]

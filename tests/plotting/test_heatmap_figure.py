@@ -13,7 +13,7 @@ from PIL import Image
 from rcm_kin import load_robot
 from rcm_kin import plotting as figures
 from rcm_kin.dynamics.drive import load_drive_parameters
-from rcm_kin.statics.gravity_map import gravity_map
+from rcm_kin.statics.maps import gravity_map
 
 PANELS = (("roll", 0), ("pitch", 1))   # (joint, index in the map's driven joints), as drawn
 
@@ -136,7 +136,7 @@ def test_contours_on_samples_keep_the_whole_grids_levels_and_colours(psm_drive, 
     """A field whose peak lies between the samples (41 poses per axis traced on 11): the levels and
     the colour limits are the whole grid's, not the samples' (which would be lower)."""
     from rcm_kin.dynamics.drive import DriveEffort
-    from rcm_kin.statics.gravity_map import GravityMap
+    from rcm_kin.statics.maps import GravityMap
 
     grid = np.linspace(-30, 30, 41)
     field = np.add.outer(np.sin(np.radians(3 * grid)), np.cos(np.radians(2 * grid)))

@@ -121,7 +121,7 @@ def test_friction_feedforward_twin_equals_the_schedule_rule():
     reference velocities from rest to far beyond the ramp (tanh saturated), both signs. Within
     2 units in the last place, not to the bit: the kernel's tanh is the C library's, NumPy's its
     own vectorised one (they differ by 1 ulp at some arguments)."""
-    from rcm_kin.control.friction_compensation import FrictionCompensation
+    from rcm_kin.control.friction import FrictionCompensation
 
     rng = np.random.default_rng(16)
     for case in range(CASES):

@@ -19,7 +19,7 @@ from rcm_kin.cli.common import (
     psm_robot,
     require_psm,
 )
-from rcm_kin.control.friction_compensation import DEFAULT_RAMP_DEG_S
+from rcm_kin.control.friction import DEFAULT_RAMP_DEG_S
 from rcm_kin.control.weights import Weights
 from rcm_kin.errors import output_folder
 from rcm_kin.hardware import DRIVER_PWM_RANGE, FIRMWARE_PERIOD, HOME_INSERTION

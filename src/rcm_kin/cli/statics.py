@@ -75,7 +75,7 @@ def add_calibrate(sub) -> None:
 
 def cmd_gravity(args) -> None:
     from rcm_kin.dynamics.drive import DRIVEN
-    from rcm_kin.statics.gravity_map import holding_effort
+    from rcm_kin.statics.maps import holding_effort
 
     robot = load_robot(args.robot, counterweights=not args.no_counterweights)
     if args.params is not None and robot.name != "psm":
@@ -99,7 +99,7 @@ def cmd_gravity(args) -> None:
 
 def cmd_torque_map(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.statics.gravity_map import check_map_size, parse_range, write_gravity_maps
+    from rcm_kin.statics.maps import check_map_size, parse_range, write_gravity_maps
 
     require_psm(args, "torque maps are for the PSM's driven joints: rcm-kin torque-map psm ...")
     robot = load_robot("psm", counterweights=not args.no_counterweights)

@@ -18,7 +18,7 @@ from rcm_kin.cli.common import (
 )
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model import load_robot
-from rcm_kin.statics.gravity_map import MAX_POSES
+from rcm_kin.statics.maps import MAX_POSES
 
 EPILOG_VIEW = ("examples: rcm-kin view psm --q 10 -5 0.08 --deg --html psm.html   (self-contained page)\n"
                "          rcm-kin view mtm --frames wrist_center tool_tip   (serves on localhost, prints the URL)\n"

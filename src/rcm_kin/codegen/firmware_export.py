@@ -5,7 +5,7 @@ bilinear interpolation (``interpolate`` of thesis Listing 4.14 along roll, then 
 clamped to the grid's edge outside it: never extrapolated. A NaN angle gives NaN gains.
 Optional feedforwards: the holding PWM table (``gravity_feedforward``) and the sliding-friction
 compensation ``rcm_friction_feedforward`` (``friction_feedforward``;
-:mod:`rcm_kin.control.friction_compensation`), which needs ``tanh`` from ``<math.h>`` (link
+:mod:`rcm_kin.control.friction`), which needs ``tanh`` from ``<math.h>`` (link
 with ``-lm`` where the C library splits it out).
 """
 

@@ -14,6 +14,6 @@ __getattr__, __dir__, _ = lazy_loader.attach(
         "gain_schedule": ["GainSchedule", "schedule_gains", "scheduled_gains"],
         "weights": ["Weights"],
         "stability": ["stability_survey"],
-        "friction_compensation": ["friction_compensation"],
+        "friction": ["friction_compensation"],
     },
 )

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rcm_kin.control.friction_compensation import (
+from rcm_kin.control.friction import (
     DEFAULT_RAMP_DEG_S,
     FrictionCompensation,
     friction_compensation,

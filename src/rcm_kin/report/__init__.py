@@ -41,7 +41,7 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     they finish. A report that fails leaves an index.html that says so."""
     from rcm_kin.identification.calibration import calibration_logs
     from rcm_kin.parallel import machine_workers
-    from rcm_kin.statics.gravity_map import check_map_size
+    from rcm_kin.statics.maps import check_map_size
 
     if map_points < 2:
         raise RcmKinError("the effort maps need at least 2 points per axis")

@@ -167,7 +167,7 @@ class StateFeedbackController:
     does; otherwise the gains (and feedforward) at roll = pitch = 0. ``gravity``: adds the
     model's holding PWM at the reference pose (the schedule's ``u_hold`` table, interpolated).
     ``friction``: adds the sliding-friction feedforward of the schedule
-    (:class:`~rcm_kin.control.friction_compensation.FrictionCompensation`) at the reference
+    (:class:`~rcm_kin.control.friction.FrictionCompensation`) at the reference
     velocity (deg/s): ``-F tanh(rdot / v_ramp)`` counts per axis, negative for a rising reference."""
 
     schedule: GainSchedule

@@ -116,7 +116,7 @@ def saturate(command, limit, whole_counts, out):
 
 @numba.njit(cache=True)
 def friction_feedforward(amplitude, ramp, rdot):
-    """Twin of :meth:`rcm_kin.control.friction_compensation.FrictionCompensation.feedforward` for
+    """Twin of :meth:`rcm_kin.control.friction.FrictionCompensation.feedforward` for
     one axis: ``-F tanh(rdot / v_ramp)`` counts (``amplitude`` F, ``ramp`` v_ramp deg/s)."""
     return -amplitude * np.tanh(rdot / ramp)
 

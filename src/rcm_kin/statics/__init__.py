@@ -10,7 +10,7 @@ __all__ = [
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,
     submod_attrs={
-        "gravity_map": ["GravityMap", "HoldingEffort", "gravity_map", "holding_effort", "write_gravity_maps"],
+        "maps": ["GravityMap", "HoldingEffort", "gravity_map", "holding_effort", "write_gravity_maps"],
         "counterweights": ["CounterweightDesign", "design_counterweights"],
     },
 )

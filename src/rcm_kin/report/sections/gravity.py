@@ -46,7 +46,7 @@ def gravity_section(out: Path, map_points: int = 61, design_points: int = 13) ->
     and the counterweight designs (``design_points`` per axis), written into ``out``."""
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.statics.counterweights import osmdv_designs
-    from rcm_kin.statics.gravity_map import write_gravity_maps
+    from rcm_kin.statics.maps import write_gravity_maps
 
     psm = load_robot("psm")
     drive = load_drive_parameters()

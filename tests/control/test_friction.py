@@ -12,7 +12,7 @@ import pytest
 from rcm_kin import RcmKinError
 from rcm_kin.cli import main
 from rcm_kin.codegen.firmware_export import gains_payload, header_text
-from rcm_kin.control.friction_compensation import FrictionCompensation, friction_compensation
+from rcm_kin.control.friction import FrictionCompensation, friction_compensation
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, schedule_gains
 from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.simulation.controllers import Sample, make_controller
