@@ -7,6 +7,8 @@ whatever the code does at run time."""
 from __future__ import annotations
 
 import ast
+import re
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -16,7 +18,8 @@ PACKAGE = SRC / "rcm_kin"
 
 # lowest first: a module imports only from its own level or below (docs/architecture.md)
 LAYERS = [
-    ("errors", "hardware", "thesis"),
+    ("errors",),
+    ("hardware", "thesis"),
     ("symbolic", "parallel"),
     ("csv_native", "csv_table"),
     ("model",),
@@ -95,12 +98,31 @@ def test_every_package_has_a_layer():
     assert not missing, f"add {missing} to LAYERS (and docs/architecture.md)"
 
 
+def public_home(name: str) -> str:
+    """The subpackage a top-level public name (``from rcm_kin import simulate``) comes from, read
+    from ``rcm_kin/__init__.py``'s ``_API`` table."""
+    tree = ast.parse(MODULES["rcm_kin"].read_text())
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "_API" for t in node.targets):
+            for key, value in zip(node.value.keys, node.value.values):
+                if name in ast.literal_eval(value):
+                    return f"rcm_kin.{ast.literal_eval(key)}"
+    return f"rcm_kin.{name}" if f"rcm_kin.{name}" in MODULES else "rcm_kin"
+
+
 @pytest.mark.parametrize("module", LIBRARY)
 def test_imports_go_down_the_layers(module):
     here = LEVEL[top(module)]
-    upward = [f"line {line}: {target}" for target, _, line, _, _ in imports(module)
+    targets = [(public_home(name) if target == "rcm_kin" and name else target, line)
+               for target, name, line, _, _ in imports(module)]
+    upward = [f"line {line}: {target}" for target, line in targets
               if target != "rcm_kin" and LEVEL[top(target)] > here]
     assert not upward, f"{module} (level {here}) imports from a higher layer: {upward}"
+
+
+def test_a_top_level_name_is_layered_by_its_home():
+    assert public_home("simulate") == "rcm_kin.simulation" and public_home("RcmKinError") == "rcm_kin.errors"
+    assert public_home("thesis") == "rcm_kin.thesis"
 
 
 @pytest.mark.parametrize("module", [m for m in LIBRARY if top(m) not in LOCAL_IMPORTS_ALLOWED])
@@ -171,20 +193,36 @@ def test_the_library_does_not_print(module):
     assert not prints, f"{module} prints (lines {prints})"
 
 
-ROBOT_WORDS = ("psm", "mtm", "davinci")
+ROBOT_WORDS = re.compile(r"(?<![a-z])(psm|mtm|davinci|dvrk)(?![a-z])", re.I)
+
+
+def strings_in_code(tree: ast.AST) -> list[str]:
+    """Every string constant of ``tree`` but the docstrings (of the module, classes, functions)."""
+    docstrings = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
+            first = node.body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
+                docstrings.add(id(first.value))
+    return [node.value for node in ast.walk(tree) if isinstance(node, ast.Constant)
+            and isinstance(node.value, str) and id(node) not in docstrings]
+
+
+def test_the_robot_name_check_finds_robot_names():
+    code = '"""A PSM docstring."""\nx = "load the PSM"\ny = f"{a} psm.toml"\nz = "mtm_arm"\n'
+    assert [bool(ROBOT_WORDS.search(s)) for s in strings_in_code(ast.parse(code))] == [True, True, True]
+    assert not ROBOT_WORDS.search("upsample and mtms_x")
 
 
 @pytest.mark.parametrize("module", [m for m in MODULES if top(m) == "model"])
 def test_the_model_layer_names_no_robot(module):
-    """No robot name in a string of the model layer, and none of the bundled robots' joint names."""
-    tree = ast.parse(MODULES[module].read_text())
+    """No robot name in the model layer's code (its strings, docstrings aside), and none of the
+    bundled robots' joint names."""
     joint_names = set()
     for sidecar in (PACKAGE.parents[1] / "urdf").glob("*.toml"):
-        joint_names |= set(__import__("tomllib").loads(sidecar.read_text()).get("actuated", []))
-    named = [node.value for node in ast.walk(tree) if isinstance(node, ast.Constant) and isinstance(node.value, str)
-             and not isinstance(getattr(node, "parent", None), ast.Expr)
-             and (any(word in node.value.lower().split("_") or node.value.lower() == word for word in ROBOT_WORDS)
-                  or node.value in joint_names)]
+        joint_names |= set(tomllib.loads(sidecar.read_text()).get("actuated", []))
+    named = [s for s in strings_in_code(ast.parse(MODULES[module].read_text()))
+             if ROBOT_WORDS.search(s) or s in joint_names]
     assert not named, f"{module} names a robot or its joints: {named}"
 
 

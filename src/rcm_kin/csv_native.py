@@ -1,8 +1,8 @@
 """The CSV number formatter of :mod:`rcm_kin.csv_table` in C: compiled once and cached on disk.
 
 The C function writes exactly the characters of the NumPy formatter
-(:func:`rcm_kin.csv_table.format_rows_numpy`, the tests compare them byte for byte), about ten
-times faster and without its per-character temporaries. It is built with the C compiler that
+(:func:`rcm_kin.csv_table.format_rows_numpy`, the tests compare them byte for byte), faster
+(docs/performance.md) and without its per-character temporaries. It is built with the C compiler that
 compiles the CasADi functions (``$CC``, default ``cc``; :mod:`rcm_kin.symbolic.compiled`) and
 cached beside them, named by a SHA-256 of its source, the compile command and the machine.
 Without a working compiler :func:`native_formatter` is None after a

@@ -1,7 +1,7 @@
 """The robot description sidecar: what a URDF cannot say (loops, actuated joints, frames).
 
-A sidecar ``<robot>.toml`` sits beside ``<robot>.urdf``; ``urdf/psm.toml`` documents the format.
-Lengths are in metres and angles in radians, in the frame of the link named.
+A sidecar ``<robot>.toml`` sits beside ``<robot>.urdf``; the bundled sidecars (``urdf/*.toml``)
+and docs/models.md document the format. Lengths are in metres and angles in radians, in the frame of the link named.
 """
 
 from __future__ import annotations

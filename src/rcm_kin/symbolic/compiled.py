@@ -16,8 +16,8 @@ subexpressions are merged (``casadi.cse``: the same operations on the same value
 
 Without a C compiler the interpreted function is returned and a
 :class:`~rcm_kin.errors.CompilerFallbackWarning` says so (once per compiler setting and process).
-:func:`single_call` evaluates one point through CasADi's bound buffers (``Function.buffer``), about 1 us
-of overhead instead of 20-30 us for a call with NumPy arguments.
+:func:`single_call` evaluates one point through CasADi's bound buffers (``Function.buffer``), without
+the conversion of NumPy arguments a plain call pays (docs/performance.md).
 """
 
 from __future__ import annotations
