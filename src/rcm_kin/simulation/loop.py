@@ -141,4 +141,5 @@ def tracking_metrics(result: SimulationResult, skip: float = 0.0) -> dict[str, A
 def diverged(tick: int, period: float, name: str) -> NonFiniteResultError:
     """The error of a run (controller ``name``) whose state left the finite numbers at ``tick``
     (period ``period`` s): one message for the readable loop and the compiled kernel."""
-    return NonFiniteResultError(f"the simulation diverged at t = {tick * period:.3f} s ({name})")
+    where = f"t = {tick * period:.3f} s"
+    return NonFiniteResultError(f"the simulation diverged at {where} ({name})", where=where)
