@@ -12,7 +12,7 @@ with ``name``, ``initial_memory(hold)`` and ``command``, and an entry in :func:`
 To run it in the compiled kernel too, give it ``kernel_law(hold)``: its law as a
 :class:`~rcm_kin.simulation.kernel_forms.LoopLaw` (one of the kernel's kinds with its gains and
 tables). Without one it runs in the readable loop, and the runner says so with an
-:class:`~rcm_kin.simulation.compiled_loop.EngineFallbackWarning`.
+:class:`~rcm_kin.errors.EngineFallbackWarning`.
 
 A run starts from the steady hold of its first pose (:class:`Hold`): a controller with an error
 integral starts it where the law, at zero error and rest, sends the PWM that holds that pose. The
@@ -26,7 +26,7 @@ with an empty integral would spend its whole length with the holding PWM missing
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -213,13 +213,11 @@ class StateFeedbackController:
         if self.friction and s.friction is None:
             raise RcmKinError("the friction-compensated controller needs a schedule with its friction feedforward")
         roll, pitch, table = stacked(s.roll_deg, s.pitch_deg, s.k_roll, s.k_pitch, s.ff_pitch)
-        law = LoopLaw(STATE_FEEDBACK, self.initial_memory(hold), roll_deg=roll, pitch_deg=pitch, table=table,
-                      flags=np.array([self.scheduled, self.gravity, self.track_velocity, self.friction]))
-        if self.gravity:
-            law = replace(law, hold=s.u_hold)
+        extra = {"hold": s.u_hold} if self.gravity else {}
         if self.friction:
-            law = replace(law, friction=np.r_[s.friction.pwm, s.friction.ramp_deg_s])
-        return law
+            extra["friction"] = np.r_[s.friction.pwm, s.friction.ramp_deg_s]
+        return LoopLaw(STATE_FEEDBACK, self.initial_memory(hold), roll_deg=roll, pitch_deg=pitch, table=table,
+                       flags=np.array([self.scheduled, self.gravity, self.track_velocity, self.friction]), **extra)
 
 
 @dataclass(frozen=True)
