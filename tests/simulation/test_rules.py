@@ -1,6 +1,8 @@
 """Each firmware rule of the compiled kernel (:mod:`rcm_kin.simulation.kernel`) against its one
-plain statement (:mod:`rcm_kin.simulation.rules`) on a few hundred seeded random inputs, the
-clamping and saturation edges among them: a failure names the rule."""
+plain statement (:mod:`rcm_kin.firmware_rules`) on a few hundred seeded random inputs, the
+clamping and saturation edges among them: a failure names the rule. The stick-slip axis's
+closed loop compiles the statements themselves (:mod:`rcm_kin.dynamics.stick_slip`): held to
+them too."""
 
 from __future__ import annotations
 
@@ -9,7 +11,10 @@ import functools
 import numpy as np
 import pytest
 
-from rcm_kin.simulation import kernel, rules
+from rcm_kin import firmware_rules as rules
+from rcm_kin.dynamics import stick_slip
+from rcm_kin.hardware import INSERTION_KP
+from rcm_kin.simulation import kernel
 
 CASES = 400
 
@@ -85,7 +90,8 @@ def test_quantise_twin_equals_the_rule():
         noise = np.round(rng.normal(0, 2, 3)) if case % 2 else np.zeros(3)
         out = np.empty(3)
         kernel.quantise(position, count, noise, out)
-        np.testing.assert_array_equal(out, rules.quantise(position, count, noise), err_msg=f"quantise, case {case}")
+        np.testing.assert_array_equal(out, rules.quantise_axes(position, count, noise),
+                                      err_msg=f"quantise, case {case}")
 
 
 def test_velocity_estimate_twin_equals_the_rule():
@@ -133,3 +139,38 @@ def test_friction_feedforward_twin_equals_the_schedule_rule():
             np.testing.assert_array_max_ulp(np.array(got), expected, maxulp=2)
         except AssertionError as exc:
             raise AssertionError(f"friction_feedforward, case {case}: {exc}") from None
+
+
+def test_the_p_laws_twins_equal_the_rules():
+    """The roll and pitch P law ``-Kp e`` and the insertion's ``Kp (r - y)``, to the bit."""
+    rng = np.random.default_rng(17)
+    for case in range(CASES):
+        kp, error = rng.uniform(0, 300), rng.normal(0, 20)
+        assert kernel.p_command(kp, error) == rules.p_command(kp, error), f"p_command, case {case}"
+        reference, measured = rng.uniform(0.02, 0.2), rng.uniform(0.02, 0.2)
+        kp = rng.choice([INSERTION_KP, rng.uniform(1e3, 1e5)])
+        got = kernel.insertion_command(reference, measured, kp)
+        assert got == rules.insertion_command(reference, measured, kp), f"insertion_command, case {case}"
+    assert rules.insertion_command(0.081, 0.080, INSERTION_KP) == INSERTION_KP * (0.081 - 0.080)
+
+
+def test_the_stick_slip_axis_compiles_the_rules_themselves():
+    """Counts from a starting angle (the origin) and saturation, compiled by numba from the one
+    statement: equal to the statement on scalars, and the readable loop's axes equal to it with
+    the origin at zero."""
+    rng = np.random.default_rng(18)
+    for case in range(CASES):
+        count = rng.choice([np.radians(0.009), np.radians(0.0135), 0.0])
+        position, origin = rng.uniform(-1.5, 1.5), rng.uniform(-1.5, 1.5) if case % 2 else 0.0
+        if case % 4 == 0 and count:
+            position = origin + (rng.integers(-1000, 1000) + 0.5) * count      # half a count: to even
+        assert stick_slip._quantise(position, count, 0.0, origin) == rules.quantise(position, count, 0.0, origin), \
+            f"quantise with an origin, case {case}"
+        command, limit = rng.normal(0, 150), rng.uniform(1, 255)
+        assert stick_slip._saturate(command, limit, False) == rules.saturate(command, limit), f"saturate, case {case}"
+        assert stick_slip._saturate(command, limit, True) == rules.saturate(command, limit, True)
+    count = np.array([0.009, 0.0135, 3e-5])
+    position = rng.uniform(-90, 90, 3)
+    np.testing.assert_array_equal(rules.quantise_axes(position, count, np.zeros(3)),
+                                  [rules.quantise(p, c) for p, c in zip(position, count)])
+    assert rules.quantise(0.3004, 0.001, origin=0.1002) == 0.1002 + 200 * 0.001       # counted from the origin

@@ -5,7 +5,7 @@ saturation and the plant, tick after tick inside one numba function
 The readable loop stays the reference (:func:`rcm_kin.simulation.loop.simulate` with the
 controllers of :mod:`rcm_kin.simulation.controllers` on a :class:`~rcm_kin.simulation.plant.Plant`);
 the kernel repeats its arithmetic operation for operation (each firmware rule a declared twin of
-:mod:`rcm_kin.simulation.rules`), and ``tests/simulation/test_compiled_loop.py`` holds the two to
+:mod:`rcm_kin.firmware_rules`), and ``tests/simulation/test_compiled_loop.py`` holds the two to
 each other tick for tick.
 
 Nothing here knows the concrete controllers or plants: :func:`loop_law` asks the controller for

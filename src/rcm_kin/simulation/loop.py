@@ -2,7 +2,7 @@
 
 The readable reference of the closed loop, and the fallback of the compiled kernel
 (:mod:`rcm_kin.simulation.compiled_loop`) where a controller or a plant has no kernel form; the
-firmware's rules it applies are stated in :mod:`rcm_kin.simulation.rules`.
+firmware's rules it applies are stated in :mod:`rcm_kin.firmware_rules`.
 
 At tick ``k`` (time ``k T``) the firmware reads the encoders, estimates the velocities, runs
 the controller and sends the PWM, which the plant integrates over ``[k T, (k + 1) T)``. Before
