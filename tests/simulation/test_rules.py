@@ -174,3 +174,29 @@ def test_the_stick_slip_axis_compiles_the_rules_themselves():
     np.testing.assert_array_equal(rules.quantise_axes(position, count, np.zeros(3)),
                                   [rules.quantise(p, c) for p, c in zip(position, count)])
     assert rules.quantise(0.3004, 0.001, origin=0.1002) == 0.1002 + 200 * 0.001       # counted from the origin
+
+
+def test_the_cached_kernels_are_keyed_on_the_sources_they_inline():
+    """A cached kernel is keyed on its own file only (numba's cache): one that freezes another
+    module's constant (the law kinds of kernel_forms) or inlines its code (the stick-slip model,
+    the rules) is built in a closure over a hash of those sources, and no top-level kernel reads
+    such a constant."""
+    import hashlib
+    import inspect
+    from pathlib import Path
+
+    from rcm_kin import firmware_rules
+    from rcm_kin.simulation import kernel_forms
+
+    sources = hashlib.sha256(b"".join(Path(m.__file__).read_bytes()
+                                      for m in (stick_slip, kernel_forms, firmware_rules))).hexdigest()
+    assert kernel.SOURCES == sources
+    for fn in (kernel.command, kernel.gain_scheduled, kernel.plant_step, kernel.plant_steps, kernel.run):
+        keys = [c.cell_contents for c in fn.py_func.__closure__ if isinstance(c.cell_contents, str)]
+        assert keys == [sources], fn.py_func.__name__
+    keys = [c.cell_contents for c in stick_slip._run_closed.py_func.__closure__ if isinstance(c.cell_contents, str)]
+    assert keys == [hashlib.sha256(Path(firmware_rules.__file__).read_bytes()).hexdigest()]
+    kinds = {"P", "PID", "STATE_FEEDBACK", "THESIS", "INSERTION_KP", "FIRMWARE_SCALE"}
+    for name, fn in inspect.getmembers(kernel, lambda f: hasattr(f, "py_func")):
+        if fn.py_func.__closure__ is None:                  # a top-level kernel, cached on kernel.py alone
+            assert not kinds & set(fn.py_func.__code__.co_names), f"{name} freezes another module's constant"
