@@ -126,7 +126,8 @@ class LoopLaw:
         table = _finite("table", np.asarray(self.table, dtype=float))
         least = TABLE_VALUES.get(kind, 1)
         if table.ndim != 3 or table.shape[:2] != grid or not least <= table.shape[2] <= 7:
-            raise _refuse("table", f"shape (pitch {grid[0]}, roll {grid[1]}, {least} to 7 values) on the grids, "
+            values = "7" if least == 7 else f"{least} to 7"
+            raise _refuse("table", f"shape (pitch {grid[0]}, roll {grid[1]}, {values} values) on the grids, "
                                    f"got {table.shape}")
         return np.concatenate([table, np.zeros(grid + (7 - table.shape[2],))], axis=-1)
 
