@@ -21,7 +21,8 @@ __version__ = "0.1.0"
 # the public API, by the subpackage that defines each name
 _API = {
     "errors": ["RcmKinError", "JointLimitError", "ParameterFileError", "WorkLimitError", "LogDataError",
-               "NonFiniteResultError", "RcmKinWarning", "CompilerFallbackWarning", "LogDataWarning"],
+               "NonFiniteResultError", "RcmKinWarning", "CompilerFallbackWarning", "EngineFallbackWarning",
+               "LogDataWarning"],
     "model": ["Robot", "RobotData", "load_robot", "robot_names", "joint_table", "gravity_torque"],
     "kinematics": ["forward_kinematics", "inverse_kinematics"],
     "dynamics": ["load_drive_parameters", "driven_dynamics", "holding_pwm"],

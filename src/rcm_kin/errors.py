@@ -108,6 +108,11 @@ class CompilerFallbackWarning(RcmKinWarning):
     interpreted equivalent with the same results. Given once per process and reason."""
 
 
+class EngineFallbackWarning(RcmKinWarning):
+    """A closed loop asked for the compiled kernel runs in the readable Python loop instead (the
+    controller or the plant has no kernel form): the same result, slower (docs/performance.md)."""
+
+
 class LogDataWarning(RcmKinWarning):
     """Records of a log left out (cut-off rows, messages missing a field); the log is still read."""
 

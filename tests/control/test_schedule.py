@@ -17,7 +17,6 @@ from rcm_kin.control.gain_schedule import (
     THESIS_PITCH_DEG,
     THESIS_ROLL_DEG,
     axis_model,
-    bilinear,
     closed_loop_matrix,
     lqr_axis,
     parse_grid,
@@ -30,6 +29,7 @@ from rcm_kin.control.linearization import linearize
 from rcm_kin.control.stability import firmware_loop_matrix, stability_survey
 from rcm_kin.control.weights import Weights
 from rcm_kin.dynamics.state_space import driven_dynamics
+from rcm_kin.firmware_rules import bilinear
 
 # The thesis's identified roll model at (0, 0) and its firmware gains (reference sheet).
 THESIS_A = np.array([[-6.1202, -4.0720], [4.0, 0.0]])

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from rcm_kin.dynamics.state_space import driven_dynamics
-from rcm_kin.errors import CompilerFallbackWarning
+from rcm_kin.errors import CompilerFallbackWarning, EngineFallbackWarning, RcmKinWarning
 from rcm_kin.simulation import compiled_loop, kernel_forms
-from rcm_kin.simulation.compiled_loop import EngineFallbackWarning, loop_law, run_closed_loop, simulate_compiled
+from rcm_kin.simulation.compiled_loop import loop_law, run_closed_loop, simulate_compiled
 from rcm_kin.simulation.compiled_plant import compiled_drive_train, compiled_smooth
 from rcm_kin.simulation.controllers import CONTROLLERS, Hold, make_controller
 from rcm_kin.simulation.experiments import psm_plant_and_schedule
@@ -178,6 +178,8 @@ def test_a_controller_without_a_kernel_form_runs_readable_with_one_warning(plant
         with pytest.warns(EngineFallbackWarning) as caught:
             result = run_closed_loop(fast_plant, controller, ref)
         assert len(caught) == 1 and "no kernel form" in str(caught[0].message)
+        assert caught[0].filename == __file__ and issubclass(caught[0].category, RcmKinWarning)   # the user's line
+        assert compiled_loop.EngineFallbackWarning is EngineFallbackWarning
         assert result.engine == "readable" and result.controller == controller.name
         slow = simulate(step, controller, ref, initial=initial)
         np.testing.assert_array_equal(result.pwm, slow.pwm)

@@ -13,8 +13,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pytest
 
+from rcm_kin.errors import EngineFallbackWarning
 from rcm_kin.hardware import INSERTION_KP
-from rcm_kin.simulation.compiled_loop import EngineFallbackWarning
 from rcm_kin.simulation.controllers import Hold, Sample
 from rcm_kin.simulation.experiments import closed_loop, psm_plant
 from rcm_kin.simulation.firmware import FirmwareSettings

@@ -1,6 +1,8 @@
 """Each firmware rule of the compiled kernel (:mod:`rcm_kin.simulation.kernel`) against its one
-plain statement (:mod:`rcm_kin.simulation.rules`) on a few hundred seeded random inputs, the
-clamping and saturation edges among them: a failure names the rule."""
+plain statement (:mod:`rcm_kin.firmware_rules`) on a few hundred seeded random inputs, the
+clamping and saturation edges among them: a failure names the rule. The stick-slip axis's
+closed loop compiles the statements themselves (:mod:`rcm_kin.dynamics.stick_slip`): held to
+them too."""
 
 from __future__ import annotations
 
@@ -9,7 +11,10 @@ import functools
 import numpy as np
 import pytest
 
-from rcm_kin.simulation import kernel, rules
+from rcm_kin import firmware_rules as rules
+from rcm_kin.dynamics import stick_slip
+from rcm_kin.hardware import INSERTION_KP
+from rcm_kin.simulation import kernel
 
 CASES = 400
 
@@ -85,7 +90,8 @@ def test_quantise_twin_equals_the_rule():
         noise = np.round(rng.normal(0, 2, 3)) if case % 2 else np.zeros(3)
         out = np.empty(3)
         kernel.quantise(position, count, noise, out)
-        np.testing.assert_array_equal(out, rules.quantise(position, count, noise), err_msg=f"quantise, case {case}")
+        np.testing.assert_array_equal(out, rules.quantise_axes(position, count, noise),
+                                      err_msg=f"quantise, case {case}")
 
 
 def test_velocity_estimate_twin_equals_the_rule():
@@ -133,3 +139,64 @@ def test_friction_feedforward_twin_equals_the_schedule_rule():
             np.testing.assert_array_max_ulp(np.array(got), expected, maxulp=2)
         except AssertionError as exc:
             raise AssertionError(f"friction_feedforward, case {case}: {exc}") from None
+
+
+def test_the_p_laws_twins_equal_the_rules():
+    """The roll and pitch P law ``-Kp e`` and the insertion's ``Kp (r - y)``, to the bit."""
+    rng = np.random.default_rng(17)
+    for case in range(CASES):
+        kp, error = rng.uniform(0, 300), rng.normal(0, 20)
+        assert kernel.p_command(kp, error) == rules.p_command(kp, error), f"p_command, case {case}"
+        reference, measured = rng.uniform(0.02, 0.2), rng.uniform(0.02, 0.2)
+        kp = rng.choice([INSERTION_KP, rng.uniform(1e3, 1e5)])
+        got = kernel.insertion_command(reference, measured, kp)
+        assert got == rules.insertion_command(reference, measured, kp), f"insertion_command, case {case}"
+    assert rules.insertion_command(0.081, 0.080, INSERTION_KP) == INSERTION_KP * (0.081 - 0.080)
+
+
+def test_the_stick_slip_axis_compiles_the_rules_themselves():
+    """Counts from a starting angle (the origin) and saturation, compiled by numba from the one
+    statement: equal to the statement on scalars, and the readable loop's axes equal to it with
+    the origin at zero."""
+    rng = np.random.default_rng(18)
+    for case in range(CASES):
+        count = rng.choice([np.radians(0.009), np.radians(0.0135), 0.0])
+        position, origin = rng.uniform(-1.5, 1.5), rng.uniform(-1.5, 1.5) if case % 2 else 0.0
+        if case % 4 == 0 and count:
+            position = origin + (rng.integers(-1000, 1000) + 0.5) * count      # half a count: to even
+        assert stick_slip._quantise(position, count, 0.0, origin) == rules.quantise(position, count, 0.0, origin), \
+            f"quantise with an origin, case {case}"
+        command, limit = rng.normal(0, 150), rng.uniform(1, 255)
+        assert stick_slip._saturate(command, limit, False) == rules.saturate(command, limit), f"saturate, case {case}"
+        assert stick_slip._saturate(command, limit, True) == rules.saturate(command, limit, True)
+    count = np.array([0.009, 0.0135, 3e-5])
+    position = rng.uniform(-90, 90, 3)
+    np.testing.assert_array_equal(rules.quantise_axes(position, count, np.zeros(3)),
+                                  [rules.quantise(p, c) for p, c in zip(position, count)])
+    assert rules.quantise(0.3004, 0.001, origin=0.1002) == 0.1002 + 200 * 0.001       # counted from the origin
+
+
+def test_the_cached_kernels_are_keyed_on_the_sources_they_inline():
+    """A cached kernel is keyed on its own file only (numba's cache): one that freezes another
+    module's constant (the law kinds of kernel_forms) or inlines its code (the stick-slip model,
+    the rules) is built in a closure over a hash of those sources, and no top-level kernel reads
+    such a constant."""
+    import hashlib
+    import inspect
+    from pathlib import Path
+
+    from rcm_kin import firmware_rules
+    from rcm_kin.simulation import kernel_forms
+
+    sources = hashlib.sha256(b"".join(Path(m.__file__).read_bytes()
+                                      for m in (stick_slip, kernel_forms, firmware_rules))).hexdigest()
+    assert kernel.SOURCES == sources
+    for fn in (kernel.command, kernel.gain_scheduled, kernel.plant_step, kernel.plant_steps, kernel.run):
+        keys = [c.cell_contents for c in fn.py_func.__closure__ if isinstance(c.cell_contents, str)]
+        assert keys == [sources], fn.py_func.__name__
+    keys = [c.cell_contents for c in stick_slip._run_closed.py_func.__closure__ if isinstance(c.cell_contents, str)]
+    assert keys == [hashlib.sha256(Path(firmware_rules.__file__).read_bytes()).hexdigest()]
+    kinds = {"P", "PID", "STATE_FEEDBACK", "THESIS", "INSERTION_KP", "FIRMWARE_SCALE"}
+    for name, fn in inspect.getmembers(kernel, lambda f: hasattr(f, "py_func")):
+        if fn.py_func.__closure__ is None:                  # a top-level kernel, cached on kernel.py alone
+            assert not kinds & set(fn.py_func.__code__.co_names), f"{name} freezes another module's constant"

@@ -332,7 +332,7 @@ def test_the_compiled_engine_equals_the_readable_classes_tick_for_tick(plant, pa
     import shutil
     import warnings
 
-    from rcm_kin.simulation.compiled_loop import EngineFallbackWarning
+    from rcm_kin.errors import EngineFallbackWarning
     compiler = shutil.which(os.environ.get("CC") or "cc") is not None     # hidden in CI's fallback run
     from dataclasses import replace
 

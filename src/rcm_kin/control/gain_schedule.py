@@ -12,7 +12,8 @@ Gains are stored in the firmware's units and signs (thesis Tables 4.4-4.8): with
 applies ``u = -(Kp e + Kd v)`` (roll) and ``u = -(Kp e + Kd v + Ki E)`` (pitch), PWM counts with
 the hardware sign (positive PWM lowers the angle). The LQR law ``u = -K [y - r; v]`` therefore
 maps to ``Kp = -K_q``, ``Kd = K_v``, ``Ki = -K_z``. Between grid points the firmware interpolates
-bilinearly (table[pitch][roll]) and clamps to the edge outside.
+bilinearly (table[pitch][roll]) and clamps to the edge outside
+(:func:`rcm_kin.firmware_rules.bilinear`).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from rcm_kin.control.friction import (
 from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.weights import Weights
 from rcm_kin.errors import RcmKinError
+from rcm_kin.firmware_rules import bilinear
 from rcm_kin.hardware import HOME_INSERTION, INSERTION_KP
 from rcm_kin.model import load_robot
 
@@ -172,28 +174,6 @@ def schedule_gains(model: DrivenDynamics, roll_deg, pitch_deg, insertion: float 
                         k_roll.reshape(*shape, 2), k_pitch.reshape(*shape, 3), grid.u0[:, :2].reshape(*shape, 2),
                         ff.reshape(*shape, 2), grid.A.reshape(*shape, 6, 6), grid.B.reshape(*shape, 6, 3),
                         A_cl.reshape(*shape, 7, 7), weights, friction)
-
-
-def interpolate(x: float, x0: float, x1: float, y0, y1):
-    """The firmware's ``interpolate``: ``y0 + (y1 - y0) * ((x - x0) / (x1 - x0))``."""
-    return y0 + (y1 - y0) * ((x - x0) / (x1 - x0))
-
-
-def _cell(grid: np.ndarray, x: float) -> tuple[int, float]:
-    """Cell index and the clamped coordinate: never extrapolate beyond the grid."""
-    x = min(max(x, grid[0]), grid[-1])
-    i = int(np.searchsorted(grid, x, side="right")) - 1
-    return min(max(i, 0), len(grid) - 2), x
-
-
-def bilinear(roll_grid: np.ndarray, pitch_grid: np.ndarray, table: np.ndarray, roll_deg: float, pitch_deg: float):
-    """Bilinear interpolation of ``table[pitch][roll]`` (trailing dims are values), clamped to
-    the grid: along roll on the two pitch rows, then along pitch, as ``gain_schedule.h`` does."""
-    i, r = _cell(roll_grid, float(roll_deg))
-    j, p = _cell(pitch_grid, float(pitch_deg))
-    low = interpolate(r, roll_grid[i], roll_grid[i + 1], table[j, i], table[j, i + 1])
-    high = interpolate(r, roll_grid[i], roll_grid[i + 1], table[j + 1, i], table[j + 1, i + 1])
-    return interpolate(p, pitch_grid[j], pitch_grid[j + 1], low, high)
 
 
 def scheduled_gains(schedule: GainSchedule, roll_deg: float, pitch_deg: float) -> tuple[np.ndarray, np.ndarray]:

@@ -18,11 +18,11 @@ from rcm_kin.control.gain_schedule import (
     THESIS_PITCH_DEG,
     THESIS_ROLL_DEG,
     GainSchedule,
-    bilinear,
     schedule_gains,
 )
 from rcm_kin.control.stability import StabilitySurvey, stability_survey
 from rcm_kin.dynamics.state_space import DrivenDynamics
+from rcm_kin.firmware_rules import bilinear
 from rcm_kin.thesis import K_PITCH, K_ROLL, ROLL_TF
 
 # the thesis's tables and identified roll model (sources: rcm_kin.thesis)

@@ -37,13 +37,17 @@ under Coulomb friction against its exact stopping time and position.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, fields
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
 
+from rcm_kin import firmware_rules
 from rcm_kin.dynamics.axis_friction import AxisFriction
+from rcm_kin.firmware_rules import quantise, saturate
 
 if TYPE_CHECKING:
     from rcm_kin.dynamics.state_space import DrivenDynamics
@@ -148,24 +152,39 @@ def _run(th, ku, kemf, Jm, grid, gtab, Mtab, pwm, state, period, substeps):
     return out
 
 
-@numba.njit(cache=True)
-def _run_closed(th, ku, kemf, Jm, grid, gtab, Mtab, law, excitation, state, period, substeps, count):
-    """Measured angle (rad) at each sample under ``pwm_k = clip(law[0] + law[1] y_k + law[2] (y_k -
-    y_k-1) / period + excitation_k, +-law[3])`` with ``y`` the angle the encoder reads (whole
-    ``count``s, rad, from the start; 0: exact), from ``state`` at rest (in place); the PWM applied
-    at each sample is returned too."""
-    out, applied = np.empty(excitation.size), np.empty(excitation.size)
-    h = period / substeps
-    origin = state[0]
-    previous = origin
-    for k in range(excitation.size):
-        y = origin + np.round((state[0] - origin) / count) * count if count > 0.0 else state[0]
-        u = law[0] + law[1] * y + law[2] * (y - previous) / period + excitation[k]
-        u = min(max(u, -law[3]), law[3])
-        previous = y
-        out[k], applied[k] = y, u
-        _step_period(state, th, u, grid, gtab, Mtab, ku, kemf, Jm, h, substeps)
-    return out, applied
+# the firmware's rules compiled from their one statement; the closed-loop run inlines them, so it is
+# built in a closure over their source's hash (numba's cache keys a function on its own file only)
+_quantise, _saturate = numba.njit(cache=True)(quantise), numba.njit(cache=True)(saturate)
+RULES = hashlib.sha256(Path(firmware_rules.__file__).read_bytes()).hexdigest()
+
+
+def _keyed_run_closed(rules: str):
+    """:func:`simulate_axis_closed`'s kernel, compiled in a closure over ``rules`` (:data:`RULES`)."""
+
+    @numba.njit(cache=True)
+    def run_closed(th, ku, kemf, Jm, grid, gtab, Mtab, law, excitation, state, period, substeps, count):
+        """Measured angle (rad) at each sample under ``pwm_k = saturate(law[0] + law[1] y_k + law[2] (y_k -
+        y_k-1) / period + excitation_k, law[3])`` with ``y`` the angle the encoder reads (``quantise``:
+        whole ``count``s, rad, from the start; 0: exact), from ``state`` at rest (in place); the PWM
+        applied at each sample is returned too."""
+        out, applied = np.empty(excitation.size), np.empty(excitation.size)
+        if len(rules) == 0:            # the closure's key (never empty)
+            return out, applied
+        h = period / substeps
+        origin = state[0]
+        previous = origin
+        for k in range(excitation.size):
+            y = _quantise(state[0], count, 0.0, origin)
+            u = _saturate(law[0] + law[1] * y + law[2] * (y - previous) / period + excitation[k], law[3], False)
+            previous = y
+            out[k], applied[k] = y, u
+            _step_period(state, th, u, grid, gtab, Mtab, ku, kemf, Jm, h, substeps)
+        return out, applied
+
+    return run_closed
+
+
+_run_closed = _keyed_run_closed(RULES)
 
 
 @numba.njit(cache=True)
@@ -217,9 +236,10 @@ def simulate_axis(friction: AxisFriction, plant: AxisPlant, pwm: np.ndarray, per
 def simulate_axis_closed(friction: AxisFriction, plant: AxisPlant, law: np.ndarray, excitation: np.ndarray,
                          period: float, state: np.ndarray, count: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """The axis under a linear feedback law sampled every ``period`` s: at sample k the PWM
-    ``clip(law[0] + law[1] y_k + law[2] (y_k - y_k-1) / period + excitation[k], +-law[3])`` (counts;
-    ``y`` the measured angle, rad, in whole encoder ``count``s (rad) from the start, as the
-    firmware reads it; 0: exact; the first difference taken from rest) is held for one period.
+    ``clip(law[0] + law[1] y_k + law[2] (y_k - y_k-1) / period + excitation[k], +-law[3])`` (counts,
+    :func:`rcm_kin.firmware_rules.saturate`; ``y`` the measured angle, rad, in whole encoder
+    ``count``s (rad) from the start, as the firmware reads it, :func:`rcm_kin.firmware_rules.quantise`
+    from the starting angle; 0: exact; the first difference taken from rest) is held for one period.
     Returns the measured angle at each sample (before its PWM acts) and the PWM applied, from
     ``state`` (advanced in place)."""
     substeps = substep_count(period)

@@ -34,7 +34,6 @@ from rcm_kin.control.gain_schedule import (
     THESIS_PITCH_DEG,
     THESIS_ROLL_DEG,
     GainSchedule,
-    bilinear,
     closed_loop_matrix,
     scheduled_gains,
 )
@@ -43,6 +42,7 @@ from rcm_kin.control.stability import damping_ratios, firmware_loop_matrix, surv
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
 from rcm_kin.errors import JointLimitError, NonFiniteResultError, RcmKinError
+from rcm_kin.firmware_rules import bilinear
 from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS
 from rcm_kin.model import load_robot
 from rcm_kin.robustness.sampling import Uncertain, draw, with_values

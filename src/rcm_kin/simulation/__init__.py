@@ -3,7 +3,7 @@
 import lazy_loader
 
 __all__ = [
-    "Controller", "FirmwareSettings", "Hold", "SimulationResult", "closed_loop", "experiment_reference",
+    "Controller", "FirmwareSettings", "Hold", "LoopLaw", "SimulationResult", "closed_loop", "experiment_reference",
     "make_controller", "run_experiment", "simulate", "tracking_metrics",
 ]
 
@@ -14,5 +14,6 @@ __getattr__, __dir__, _ = lazy_loader.attach(
         "controllers": ["Controller", "make_controller", "Hold"],
         "experiments": ["run_experiment", "closed_loop", "experiment_reference"],
         "firmware": ["FirmwareSettings"],
+        "kernel_forms": ["LoopLaw"],
     },
 )

@@ -5,14 +5,14 @@ saturation and the plant, tick after tick inside one numba function
 The readable loop stays the reference (:func:`rcm_kin.simulation.loop.simulate` with the
 controllers of :mod:`rcm_kin.simulation.controllers` on a :class:`~rcm_kin.simulation.plant.Plant`);
 the kernel repeats its arithmetic operation for operation (each firmware rule a declared twin of
-:mod:`rcm_kin.simulation.rules`), and ``tests/simulation/test_compiled_loop.py`` holds the two to
+:mod:`rcm_kin.firmware_rules`), and ``tests/simulation/test_compiled_loop.py`` holds the two to
 each other tick for tick.
 
 Nothing here knows the concrete controllers or plants: :func:`loop_law` asks the controller for
 its kernel form (``kernel_law(hold)``, a :class:`~rcm_kin.simulation.kernel_forms.LoopLaw`),
 :func:`kernel_plant` asks the plant (``kernel_plant()``, a
 :class:`~rcm_kin.simulation.compiled_plant.CompiledPlant`). :func:`run_closed_loop` runs the kernel
-when both have one, else the readable loop with one :class:`EngineFallbackWarning` (a controller
+when both have one, else the readable loop with one :class:`~rcm_kin.errors.EngineFallbackWarning` (a controller
 without a kernel form, or no C compiler for the plant's functions): never silently slower.
 
 Encoder noise is drawn in Python from the run's generator in the reference's order (3 values for
@@ -21,13 +21,12 @@ the first reading, then 3 per tick), so both engines see the same counts.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import replace
 
 import numpy as np
 from tqdm import tqdm
 
-from rcm_kin.errors import RcmKinError, RcmKinWarning
+from rcm_kin.errors import EngineFallbackWarning, RcmKinError, warn
 from rcm_kin.hardware import INSERTION_KP
 from rcm_kin.simulation.compiled_plant import CompiledPlant
 from rcm_kin.simulation.controllers import Controller, Hold
@@ -39,11 +38,6 @@ from rcm_kin.simulation.plant import Plant
 from rcm_kin.simulation.references import Reference
 
 CHUNK = 4000                                       # ticks per kernel call (the progress bar's step)
-
-
-class EngineFallbackWarning(RcmKinWarning):
-    """A closed loop asked for the compiled kernel runs in the readable Python loop instead (the
-    controller or the plant has no kernel form): the same result, 50-150 times slower."""
 
 
 def loop_law(controller: Controller, hold: Hold | None = None) -> LoopLaw | None:
@@ -66,7 +60,7 @@ def run_closed_loop(plant: Plant, controller: Controller, reference: Reference,
     """:func:`~rcm_kin.simulation.loop.simulate` of ``controller`` on ``plant`` from ``hold``, in the
     compiled kernel when the controller and the plant both have a kernel form (the result's
     ``engine`` is then ``"compiled"``), else in the readable loop with one
-    :class:`EngineFallbackWarning` saying why."""
+    :class:`~rcm_kin.errors.EngineFallbackWarning` saying why."""
     settings = settings or FirmwareSettings()
     law = loop_law(controller, hold.within(settings.pwm_limit) if hold else None)
     compiled = kernel_plant(plant) if law is not None else None
@@ -74,8 +68,7 @@ def run_closed_loop(plant: Plant, controller: Controller, reference: Reference,
         return simulate_compiled(compiled, law, controller.name, reference, settings, seed=seed, progress=progress)
     reason = (f"the controller '{controller.name}' has no kernel form (kernel_law)" if law is None else
               f"the plant {type(plant).__name__} has no compiled form (no kernel_plant, or no C compiler)")
-    warnings.warn(f"{reason}: the closed loop runs tick by tick in the readable Python loop, slower",
-                  EngineFallbackWarning, stacklevel=2)
+    warn(f"{reason}: the closed loop runs tick by tick in the readable Python loop, slower", EngineFallbackWarning)
     return simulate(plant.step, controller, reference, settings, seed=seed, progress=progress,
                     initial=plant.initial, hold=hold)
 

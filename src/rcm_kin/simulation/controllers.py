@@ -12,21 +12,19 @@ with ``name``, ``initial_memory(hold)`` and ``command``, and an entry in :func:`
 To run it in the compiled kernel too, give it ``kernel_law(hold)``: its law as a
 :class:`~rcm_kin.simulation.kernel_forms.LoopLaw` (one of the kernel's kinds with its gains and
 tables). Without one it runs in the readable loop, and the runner says so with an
-:class:`~rcm_kin.simulation.compiled_loop.EngineFallbackWarning`.
+:class:`~rcm_kin.errors.EngineFallbackWarning`.
 
 A run starts from the steady hold of its first pose (:class:`Hold`): a controller with an error
 integral starts it where the law, at zero error and rest, sends the PWM that holds that pose. The
-robot's firmware carries its holding effort in the integral once it has held a pose long enough:
-in the roll-step log at (0, 0), where the robot rests between experiments and the sinusoid
-starts, the pitch, held by ``u = -(220.7 e + 0.32 v + Ki E)``, takes 92 of its 86 PWM from the
-integral (``analysis/holding_law.py``; the poses visited only for a step had not settled). With the
-thesis's ``Ki`` of about 0.15 PWM/(deg s) that charge takes minutes to build, so a run that began
-with an empty integral would spend its whole length with the holding PWM missing.
+robot's firmware carries its holding effort in the integral once it has held a pose long enough,
+and with the thesis's small ``Ki`` that charge takes minutes to build, so a run that began with an
+empty integral would spend its whole length with the holding PWM missing (measured:
+docs/findings.md, "How the firmware held the pitch").
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -34,9 +32,9 @@ import numpy as np
 from rcm_kin import thesis as thesis_reference
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, scheduled_gains
 from rcm_kin.errors import RcmKinError
+from rcm_kin.firmware_rules import bilinear, conditional_integral, insertion_command, p_command
 from rcm_kin.hardware import INSERTION_KP, P_GAINS
 from rcm_kin.simulation.kernel_forms import PID, STATE_FEEDBACK, THESIS, LoopLaw, P, stacked
-from rcm_kin.simulation.rules import bilinear, conditional_integral
 
 CONTROLLERS = ("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity", "scheduled-friction", "thesis")
 MODEL_FREE = ("p", "pid", "thesis")        # the controllers that need no gain schedule
@@ -94,7 +92,7 @@ class Controller(Protocol):
 
 
 def _insertion(sample: Sample) -> float:
-    return INSERTION_KP * (sample.reference[2] - sample.position[2])
+    return insertion_command(sample.reference[2], sample.position[2], INSERTION_KP)
 
 
 def _own_law(controller, owner: type) -> bool:
@@ -115,7 +113,7 @@ class PController:
 
     def command(self, memory: np.ndarray, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         e = sample.reference[:2] - sample.position[:2]
-        return np.array([-self.kp[0] * e[0], -self.kp[1] * e[1], _insertion(sample)]), memory
+        return np.array([p_command(self.kp[0], e[0]), p_command(self.kp[1], e[1]), _insertion(sample)]), memory
 
     def kernel_law(self, hold: Hold | None = None) -> LoopLaw | None:
         if not _own_law(self, PController):
@@ -213,13 +211,11 @@ class StateFeedbackController:
         if self.friction and s.friction is None:
             raise RcmKinError("the friction-compensated controller needs a schedule with its friction feedforward")
         roll, pitch, table = stacked(s.roll_deg, s.pitch_deg, s.k_roll, s.k_pitch, s.ff_pitch)
-        law = LoopLaw(STATE_FEEDBACK, self.initial_memory(hold), roll_deg=roll, pitch_deg=pitch, table=table,
-                      flags=np.array([self.scheduled, self.gravity, self.track_velocity, self.friction]))
-        if self.gravity:
-            law = replace(law, hold=s.u_hold)
+        extra = {"hold": s.u_hold} if self.gravity else {}
         if self.friction:
-            law = replace(law, friction=np.r_[s.friction.pwm, s.friction.ramp_deg_s])
-        return law
+            extra["friction"] = np.r_[s.friction.pwm, s.friction.ramp_deg_s]
+        return LoopLaw(STATE_FEEDBACK, self.initial_memory(hold), roll_deg=roll, pitch_deg=pitch, table=table,
+                       flags=np.array([self.scheduled, self.gravity, self.track_velocity, self.friction]), **extra)
 
 
 @dataclass(frozen=True)

@@ -150,7 +150,7 @@ def closed_loop(plant: Plant, controller: Controller, reference: Reference, sett
     """``controller`` on ``plant`` (:func:`psm_plant`) along ``reference``, from rest at its first
     pose, the controller's integrals charged to ``hold`` (:func:`start_hold`) when given. ``fast``:
     in one compiled kernel when the controller and the plant have kernel forms, else in the
-    readable loop with an :class:`~rcm_kin.simulation.compiled_loop.EngineFallbackWarning`
+    readable loop with an :class:`~rcm_kin.errors.EngineFallbackWarning`
     (:func:`~rcm_kin.simulation.compiled_loop.run_closed_loop`); ``False``: the readable reference
     loop (:func:`rcm_kin.simulation.loop.simulate`). The same result either way (the tests hold the
     engines to each other tick for tick). A state that leaves the finite numbers raises
@@ -172,7 +172,9 @@ def check_in_limits(result: SimulationResult) -> None:
     if np.any(bad):
         k, j = np.argwhere(bad)[0]
         unit, scale = ("m", 1.0) if j == 2 else ("deg", 180 / np.pi)
-        raise JointLimitError(f"the simulated {('roll', 'pitch', 'insertion')[j]} reached {position[k, j] * scale:.4g} "
-                          f"{unit} at t = {result.time[k]:.3f} s, outside its joint range [{lower[j] * scale:.4g}, "
-                          f"{upper[j] * scale:.4g}] {unit}: the closed loop does not hold the robot in its range "
-                          "with these settings (controller, rate, limits)")
+        message = (f"the simulated {('roll', 'pitch', 'insertion')[j]} reached {position[k, j] * scale:.4g} {unit} at "
+                   f"t = {result.time[k]:.3f} s, outside its joint range [{lower[j] * scale:.4g}, "
+                   f"{upper[j] * scale:.4g}] {unit}: the closed loop does not hold the robot in its range "
+                   "with these settings (controller, rate, limits)")
+        raise JointLimitError(message, joints=(psm.actuated[index[j]],), values=position[k, [j]],
+                              lower=lower[[j]], upper=upper[[j]])

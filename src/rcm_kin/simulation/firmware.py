@@ -9,7 +9,7 @@ The defaults are the flashed firmware's numbers (:mod:`rcm_kin.hardware`):
 - PWM: the controller's command is saturated (roll +-100, pitch +-150, insertion +-100 counts)
   and sent as a whole number of counts (truncated toward zero, as a C ``int`` cast does).
 
-The rules themselves are stated in :mod:`rcm_kin.simulation.rules`; the functions here apply
+The rules themselves are stated in :mod:`rcm_kin.firmware_rules`; the functions here apply
 them with a :class:`FirmwareSettings`.
 """
 
@@ -20,8 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rcm_kin.errors import RcmKinError
+from rcm_kin.firmware_rules import quantise_axes, saturate, velocity_estimate
 from rcm_kin.hardware import DRIVER_PWM_RANGE, ENCODER_COUNT, FIRMWARE_PERIOD, PWM_LIMIT, ROLL_FILTER
-from rcm_kin.simulation.rules import quantise, saturate, velocity_estimate
 
 
 @dataclass(frozen=True)
@@ -50,17 +50,17 @@ class FirmwareSettings:
 
 def encoder_reading(settings: FirmwareSettings, position: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Measured (roll deg, pitch deg, insertion m) of the true position in the same units
-    (:func:`rcm_kin.simulation.rules.quantise`); with noise, 3 whole counts drawn from ``rng``."""
+    (:func:`rcm_kin.firmware_rules.quantise`); with noise, 3 whole counts drawn from ``rng``."""
     noise = np.round(rng.normal(0.0, settings.noise_counts, 3)) if settings.noise_counts else np.zeros(3)
-    return quantise(position, settings.encoder_count, noise)
+    return quantise_axes(position, settings.encoder_count, noise)
 
 
 def firmware_velocity(settings: FirmwareSettings, measured: np.ndarray, previous: np.ndarray,
                       filtered: np.ndarray) -> np.ndarray:
-    """Firmware velocity (deg/s, deg/s, m/s): :func:`rcm_kin.simulation.rules.velocity_estimate`."""
+    """Firmware velocity (deg/s, deg/s, m/s): :func:`rcm_kin.firmware_rules.velocity_estimate`."""
     return velocity_estimate(measured, previous, filtered, settings.period, settings.roll_filter)
 
 
 def sent_pwm(settings: FirmwareSettings, command: np.ndarray) -> np.ndarray:
-    """The PWM the drivers receive: :func:`rcm_kin.simulation.rules.saturate` at the settings' limits."""
+    """The PWM the drivers receive: :func:`rcm_kin.firmware_rules.saturate` at the settings' limits."""
     return saturate(command, settings.pwm_limit, settings.quantise_pwm)

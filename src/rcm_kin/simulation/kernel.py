@@ -1,7 +1,7 @@
 """The numba kernels of the compiled closed loop: the firmware's rules, the controller laws, the
 plant step and the loop over ticks.
 
-Each firmware rule here is the declared twin of its plain statement in :mod:`rcm_kin.simulation.rules`,
+Each firmware rule here is the declared twin of its plain statement in :mod:`rcm_kin.firmware_rules`,
 written in the same order of operations (so both engines give the same numbers; the friction
 feedforward's ``tanh`` is the C library's here and NumPy's own in the readable controller, 1 ulp apart
 at some arguments); ``tests/simulation/test_rules.py`` holds each twin to its statement on random
@@ -12,11 +12,15 @@ The plant's CasADi functions are called through their C entry point
 (``f(arg, res, iw, w, mem)``) by address (:func:`call_c`); the drive-train axes are advanced by
 the stick-slip model's own kernel (:func:`rcm_kin.dynamics.stick_slip.advance`).
 
-numba's on-disk cache keys a function on its own file only; the plant step inlines the stick-slip
-kernels, so it and the loops over it are built in a closure over a hash of ``stick_slip.py``
-(numba keys cached closures on their cell contents): a changed drive-train model compiles anew.
-Constants of other modules (``hardware.INSERTION_KP``, ``loop.FIRMWARE_SCALE``) are kernel
-arguments, never frozen into the cached machine code.
+numba's on-disk cache keys a function on its own file only, not on the modules it inlines. What
+the kernel takes from other modules' source is therefore keyed explicitly: the plant step inlines
+the stick-slip kernels, and the laws test the kinds of :mod:`rcm_kin.simulation.kernel_forms`
+(``P``, ``PID``, ``THESIS``, frozen into the machine code), so the laws, the plant step and the
+loops over them are built in closures over :data:`SOURCES`, a hash of ``stick_slip.py``,
+``kernel_forms.py`` and ``firmware_rules.py`` (numba keys cached closures on their cell contents):
+a change to any of them compiles anew. The functions at this module's top level use nothing but
+this file. The other modules' numbers (``hardware.INSERTION_KP``, ``loop.FIRMWARE_SCALE``) are
+kernel arguments, never frozen into the cached machine code.
 """
 
 from __future__ import annotations
@@ -30,18 +34,20 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
+from rcm_kin import firmware_rules
 from rcm_kin.dynamics import stick_slip
 from rcm_kin.dynamics.stick_slip import advance
+from rcm_kin.simulation import kernel_forms
 from rcm_kin.simulation.kernel_forms import PID, THESIS, P
 
 DRIVE_TRAIN, SMOOTH = 0, 1                         # CompiledPlant.kind
 
 
-# --- the firmware's rules: twins of rcm_kin.simulation.rules ------------------------------------
+# --- the firmware's rules: twins of rcm_kin.firmware_rules ------------------------------------
 
 @numba.njit(cache=True)
 def cell(grid, x):
-    """Twin of ``gain_schedule._cell``: the cell index (largest i with grid[i] <= x, at most
+    """Twin of ``firmware_rules._cell``: the cell index (largest i with grid[i] <= x, at most
     n - 2) and x clamped to the grid."""
     x = min(max(x, grid[0]), grid[-1])
     i = 0
@@ -52,7 +58,7 @@ def cell(grid, x):
 
 @numba.njit(cache=True)
 def bilinear(roll_grid, pitch_grid, table, roll, pitch, out):
-    """Twin of :func:`rcm_kin.simulation.rules.bilinear` (clamped, along roll on the two pitch
+    """Twin of :func:`rcm_kin.firmware_rules.bilinear` (clamped, along roll on the two pitch
     rows, then along pitch): every value of ``table[pitch][roll]`` at the pose into ``out``."""
     i, r = cell(roll_grid, roll)
     j, p = cell(pitch_grid, pitch)
@@ -76,7 +82,7 @@ def integral_law(pid, with_feedforward, c1, c2, k_integral, integral, feedforwar
 
 @numba.njit(cache=True)
 def conditional_integral(integral, error, period, limit, pid, with_feedforward, c1, c2, k_integral, feedforward):
-    """Twin of :func:`rcm_kin.simulation.rules.conditional_integral` with the law
+    """Twin of :func:`rcm_kin.firmware_rules.conditional_integral` with the law
     :func:`integral_law`: ``(u, integral)``."""
     candidate = integral + error * period
     u = integral_law(pid, with_feedforward, c1, c2, k_integral, candidate, feedforward)
@@ -88,7 +94,7 @@ def conditional_integral(integral, error, period, limit, pid, with_feedforward, 
 
 @numba.njit(cache=True)
 def quantise(position, count, noise, out):
-    """Twin of :func:`rcm_kin.simulation.rules.quantise`, into ``out``."""
+    """Twin of :func:`rcm_kin.firmware_rules.quantise`, into ``out``."""
     for j in range(3):
         if count[j] == 0.0:
             out[j] = position[j]
@@ -98,7 +104,7 @@ def quantise(position, count, noise, out):
 
 @numba.njit(cache=True)
 def velocity_estimate(measured, previous, filtered, period, roll_filter):
-    """Twin of :func:`rcm_kin.simulation.rules.velocity_estimate`, ``filtered`` updated in place."""
+    """Twin of :func:`rcm_kin.firmware_rules.velocity_estimate`, ``filtered`` updated in place."""
     raw0 = (measured[0] - previous[0]) / period
     filtered[0] = roll_filter * filtered[0] + (1 - roll_filter) * raw0
     filtered[1] = (measured[1] - previous[1]) / period
@@ -107,11 +113,23 @@ def velocity_estimate(measured, previous, filtered, period, roll_filter):
 
 @numba.njit(cache=True)
 def saturate(command, limit, whole_counts, out):
-    """Twin of :func:`rcm_kin.simulation.rules.saturate`, into ``out``."""
+    """Twin of :func:`rcm_kin.firmware_rules.saturate`, into ``out``."""
     for j in range(3):
         out[j] = min(max(command[j], -limit[j]), limit[j])
         if whole_counts:
             out[j] = np.trunc(out[j])
+
+
+@numba.njit(cache=True)
+def p_command(kp, error):
+    """Twin of :func:`rcm_kin.firmware_rules.p_command`: ``-Kp e``."""
+    return -kp * error
+
+
+@numba.njit(cache=True)
+def insertion_command(reference, measured, kp):
+    """Twin of :func:`rcm_kin.firmware_rules.insertion_command`: ``Kp (r - y)`` (``kp`` counts/m)."""
+    return kp * (reference - measured)
 
 
 @numba.njit(cache=True)
@@ -121,59 +139,76 @@ def friction_feedforward(amplitude, ramp, rdot):
     return -amplitude * np.tanh(rdot / ramp)
 
 
+SOURCES = hashlib.sha256(b"".join(Path(m.__file__).read_bytes()
+                                  for m in (stick_slip, kernel_forms, firmware_rules))).hexdigest()
+"""The key of the cached kernels that inline other modules' code (see the module notes)."""
+
+
 # --- the controller laws ------------------------------------------------------------------------
 
-@numba.njit(cache=True)
-def _gain_scheduled(kind, flags, roll_grid, pitch_grid, table, hold_table, friction, memory, measured, velocity,
-                    reference, rdot, racc, period, limit, scratch, command):
-    """The thesis and state-feedback laws (``ThesisController``, ``StateFeedbackController``)."""
-    e0, e1 = reference[0] - measured[0], reference[1] - measured[1]
-    scheduled, gravity, track, compensate = flags[0], flags[1], flags[2], flags[3]
-    at0, at1 = (measured[0], measured[1]) if (scheduled or kind == THESIS) else (0.0, 0.0)
-    k = scratch[:7]
-    bilinear(roll_grid, pitch_grid, table, at0, at1, k)
-    v0, v1 = velocity[0], velocity[1]
-    if kind == THESIS:
-        command[0] = -(k[0] * e0 + k[1] * v0)
-        command[1], memory[0] = conditional_integral(memory[0], e1, period, limit[1], False, False,
-                                                     k[2] * e1, k[3] * v1, k[4], 0.0)
-        return
-    if track:
-        v0, v1 = v0 - rdot[0], v1 - rdot[1]
-    hold = scratch[7:9]
-    if gravity:
-        bilinear(roll_grid, pitch_grid, hold_table, reference[0], reference[1], hold)
-    else:
-        hold[0], hold[1] = 0.0, 0.0
-    if compensate:
-        hold[0] = hold[0] + friction_feedforward(friction[0], friction[2], rdot[0])
-        hold[1] = hold[1] + friction_feedforward(friction[1], friction[2], rdot[1])
-    command[0] = -(k[0] * e0 + k[1] * v0) + hold[0]
-    feedforward = k[5] * rdot[1] + k[6] * racc[1] + hold[1]
-    command[1], memory[0] = conditional_integral(memory[0], e1, period, limit[1], False, True,
-                                                 k[2] * e1, k[3] * v1, k[4], feedforward)
+def _keyed_laws(sources: str):
+    """The laws, compiled in a closure over ``sources`` (:data:`SOURCES`): the kinds they test
+    are :mod:`rcm_kin.simulation.kernel_forms`' constants, frozen into the cached code."""
+
+    @numba.njit(cache=True)
+    def gain_scheduled(kind, flags, roll_grid, pitch_grid, table, hold_table, friction, memory, measured, velocity,
+                       reference, rdot, racc, period, limit, scratch, command):
+        """The thesis and state-feedback laws (``ThesisController``, ``StateFeedbackController``)."""
+        if len(sources) == 0:              # the closure's key (never empty)
+            return
+        e0, e1 = reference[0] - measured[0], reference[1] - measured[1]
+        scheduled, gravity, track, compensate = flags[0], flags[1], flags[2], flags[3]
+        at0, at1 = (measured[0], measured[1]) if (scheduled or kind == THESIS) else (0.0, 0.0)
+        k = scratch[:7]
+        bilinear(roll_grid, pitch_grid, table, at0, at1, k)
+        v0, v1 = velocity[0], velocity[1]
+        if kind == THESIS:
+            command[0] = -(k[0] * e0 + k[1] * v0)
+            command[1], memory[0] = conditional_integral(memory[0], e1, period, limit[1], False, False,
+                                                         k[2] * e1, k[3] * v1, k[4], 0.0)
+            return
+        if track:
+            v0, v1 = v0 - rdot[0], v1 - rdot[1]
+        hold = scratch[7:9]
+        if gravity:
+            bilinear(roll_grid, pitch_grid, hold_table, reference[0], reference[1], hold)
+        else:
+            hold[0], hold[1] = 0.0, 0.0
+        if compensate:
+            hold[0] = hold[0] + friction_feedforward(friction[0], friction[2], rdot[0])
+            hold[1] = hold[1] + friction_feedforward(friction[1], friction[2], rdot[1])
+        command[0] = -(k[0] * e0 + k[1] * v0) + hold[0]
+        feedforward = k[5] * rdot[1] + k[6] * racc[1] + hold[1]
+        command[1], memory[0] = conditional_integral(memory[0], e1, period, limit[1], False, True,
+                                                     k[2] * e1, k[3] * v1, k[4], feedforward)
+
+    @numba.njit(cache=True)
+    def command(kind, flags, gains, roll_grid, pitch_grid, table, hold_table, friction, memory, measured, velocity,
+                reference, rdot, racc, period, limit, insertion_kp, scratch, out):
+        """The controller's ``command`` (firmware units, before saturation) into ``out``; ``memory``
+        updated in place; the insertion by its P loop (``insertion_kp`` counts/m)."""
+        if len(sources) == 0:
+            return
+        e0, e1 = reference[0] - measured[0], reference[1] - measured[1]
+        if kind == P:
+            out[0] = p_command(gains[0], e0)
+            out[1] = p_command(gains[1], e1)
+        elif kind == PID:                                    # memory: integrals, previous errors
+            e = (e0, e1)
+            for i in range(2):
+                de = 0.0 if np.isnan(memory[2 + i]) else (e[i] - memory[2 + i]) / period
+                out[i], memory[i] = conditional_integral(memory[i], e[i], period, limit[i], True, False,
+                                                         gains[i] * e[i], gains[4 + i] * de, gains[2 + i], 0.0)
+            memory[2], memory[3] = e0, e1
+        else:                                                # STATE_FEEDBACK or THESIS
+            gain_scheduled(kind, flags, roll_grid, pitch_grid, table, hold_table, friction, memory, measured,
+                           velocity, reference, rdot, racc, period, limit, scratch, out)
+        out[2] = insertion_command(reference[2], measured[2], insertion_kp)
+
+    return gain_scheduled, command
 
 
-@numba.njit(cache=True)
-def command(kind, flags, gains, roll_grid, pitch_grid, table, hold_table, friction, memory, measured, velocity,
-            reference, rdot, racc, period, limit, insertion_kp, scratch, out):
-    """The controller's ``command`` (firmware units, before saturation) into ``out``; ``memory``
-    updated in place; the insertion by its P loop (``insertion_kp`` counts/m)."""
-    e0, e1 = reference[0] - measured[0], reference[1] - measured[1]
-    if kind == P:
-        out[0] = -gains[0] * e0
-        out[1] = -gains[1] * e1
-    elif kind == PID:                                    # memory: integrals, previous errors
-        e = (e0, e1)
-        for i in range(2):
-            de = 0.0 if np.isnan(memory[2 + i]) else (e[i] - memory[2 + i]) / period
-            out[i], memory[i] = conditional_integral(memory[i], e[i], period, limit[i], True, False,
-                                                     gains[i] * e[i], gains[4 + i] * de, gains[2 + i], 0.0)
-        memory[2], memory[3] = e0, e1
-    else:                                                # STATE_FEEDBACK or THESIS
-        _gain_scheduled(kind, flags, roll_grid, pitch_grid, table, hold_table, friction, memory, measured,
-                        velocity, reference, rdot, racc, period, limit, scratch, out)
-    out[2] = insertion_kp * (reference[2] - measured[2])
+gain_scheduled, command = _keyed_laws(SOURCES)
 
 
 # --- the plant ----------------------------------------------------------------------------------
@@ -195,8 +230,8 @@ def call_c(typingctx, address, arg, res, iw, w):
 
 
 def _keyed_plant_step(physics: str):
-    """The plant step compiled in a closure over ``physics`` (the stick-slip source's hash), so
-    numba's cache keys it on the drive-train model it inlines."""
+    """The plant step compiled in a closure over ``physics`` (:data:`SOURCES`), so numba's cache
+    keys it on the drive-train model it inlines."""
 
     @numba.njit(cache=True)
     def plant_step(kind, x, u, addresses, friction, input_gain, damping, reflected_inertia, period, substeps,
@@ -240,8 +275,7 @@ def work_buffers(work):
             np.zeros(size[2], dtype=np.int64), np.zeros(size[3]), np.zeros(5))
 
 
-PHYSICS = hashlib.sha256(Path(stick_slip.__file__).read_bytes()).hexdigest()
-plant_step = _keyed_plant_step(PHYSICS)
+plant_step = _keyed_plant_step(SOURCES)
 
 
 # --- the loops ----------------------------------------------------------------------------------
@@ -304,4 +338,4 @@ def _keyed_loops(physics: str):
     return plant_steps, run
 
 
-plant_steps, run = _keyed_loops(PHYSICS)
+plant_steps, run = _keyed_loops(SOURCES)

@@ -2,7 +2,7 @@
 
 The readable reference of the closed loop, and the fallback of the compiled kernel
 (:mod:`rcm_kin.simulation.compiled_loop`) where a controller or a plant has no kernel form; the
-firmware's rules it applies are stated in :mod:`rcm_kin.simulation.rules`.
+firmware's rules it applies are stated in :mod:`rcm_kin.firmware_rules`.
 
 At tick ``k`` (time ``k T``) the firmware reads the encoders, estimates the velocities, runs
 the controller and sends the PWM, which the plant integrates over ``[k T, (k + 1) T)``. Before
@@ -141,4 +141,5 @@ def tracking_metrics(result: SimulationResult, skip: float = 0.0) -> dict[str, A
 def diverged(tick: int, period: float, name: str) -> NonFiniteResultError:
     """The error of a run (controller ``name``) whose state left the finite numbers at ``tick``
     (period ``period`` s): one message for the readable loop and the compiled kernel."""
-    return NonFiniteResultError(f"the simulation diverged at t = {tick * period:.3f} s ({name})")
+    where = f"t = {tick * period:.3f} s"
+    return NonFiniteResultError(f"the simulation diverged at {where} ({name})", where=where)

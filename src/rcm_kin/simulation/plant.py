@@ -5,16 +5,11 @@ trains with friction that sticks (:class:`DriveTrainPlant`, time-stepped as
 :mod:`rcm_kin.dynamics.stick_slip`). Both are :class:`Plant` s, and so is their kernel form, the
 :class:`~rcm_kin.simulation.compiled_plant.CompiledPlant` that ``kernel_plant()`` gives.
 
-Smooth model: fixed-step RK4 with the PWM held.
-
-Classical RK4 (:func:`rcm_kin.symbolic.integrators.rk4_map`) with ``substeps`` equal steps per
-period ``T``. The stiffest term of the PSM's driven joints is the smoothed Coulomb friction at
-rest (pitch: slope ``F_c / v_c`` of 54 N m s/rad on 0.31 kg m^2, 170 1/s; roll 98 N m s/rad on
-1.12 kg m^2, 88 1/s; the insertion loop ~120 rad/s), which gives ``|lambda| h <= 0.11`` at 400 Hz
-and 4 substeps, inside
-RK4's stability region (2.8). ``tests/simulation/test_simulation.py`` compares one period with DOP853 at
-rtol 1e-11: within 1e-7 rad in position and 2e-4 rad/s in velocity, the largest where a
-velocity reverses through the friction.
+Smooth model: classical RK4 (:func:`rcm_kin.symbolic.integrators.rk4_map`) with ``substeps``
+equal steps per period ``T`` and the PWM held. The stiffest term of the driven joints is the
+smoothed Coulomb friction at rest; at 400 Hz and 4 substeps its ``|lambda| h`` stays inside RK4's
+stability region, and ``tests/simulation/test_simulation.py`` holds one period to an adaptive
+solver (DOP853) (the figures: docs/findings.md, "The smooth plant's integrator").
 """
 
 from __future__ import annotations

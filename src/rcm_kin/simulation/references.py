@@ -42,8 +42,9 @@ def _samples(duration: float, period: float) -> np.ndarray:
         raise RcmKinError(f"the duration must be a positive number of seconds, got {duration}")
     samples = duration / period + 1
     if samples > MAX_SAMPLES:
-        raise WorkLimitError(f"{duration:g} s at {1 / period:g} Hz is {samples:,.0f} controller periods; the limit is "
-                          f"{MAX_SAMPLES:,} (one to two minutes of simulation): shorten the duration or lower the rate")
+        message = (f"{duration:g} s at {1 / period:g} Hz is {samples:,.0f} controller periods; the limit is "
+                   f"{MAX_SAMPLES:,} (one to two minutes of simulation): shorten the duration or lower the rate")
+        raise WorkLimitError(message, requested=samples, limit=MAX_SAMPLES, parameter="duration")
     return np.arange(int(round(duration / period)) + 1) * period
 
 
