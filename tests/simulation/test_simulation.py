@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import casadi as ca
 import numpy as np
@@ -382,3 +383,28 @@ def test_cached_schedules_and_models_tell_apart_the_9th_significant_digit(params
     q = np.array([0.2, -0.3, 0.1])
     gravity = [np.array(experiments._smooth_model(p).gravity(q)).ravel() for p in (params, other)]
     assert not np.array_equal(*gravity)                                  # and the models differ
+
+
+def test_the_caches_follow_the_robot_loaded_now(tmp_path, monkeypatch, params):
+    """After the robot's files change, load_robot gives a new robot: the model, schedule and plant
+    caches keyed by the parameters alone would return the old robot's; they are keyed by both."""
+    import shutil
+
+    from rcm_kin.model import load_robot
+    from rcm_kin.model.loading import urdf_dir
+    from rcm_kin.simulation import experiments
+
+    for suffix in (".toml", ".urdf"):
+        shutil.copy(urdf_dir() / f"psm{suffix}", tmp_path / f"psm{suffix}")
+    urdf = tmp_path / "psm.urdf"
+    heavier = re.sub(r'<mass value="([^"]+)"', lambda m: f'<mass value="{2 * float(m.group(1))!r}"', urdf.read_text())
+    urdf.write_text(heavier)                                               # every body twice as heavy
+    before = experiments._smooth_model(params)
+    edited = load_robot(str(tmp_path / "psm.toml"))
+    monkeypatch.setattr(experiments, "load_robot", lambda name, **kw: edited)
+    after = experiments._smooth_model(params)
+    assert after is not before
+    q = np.array([0.2, -0.3, 0.1])
+    fresh = experiments.driven_dynamics(edited, params, coulomb=False)
+    np.testing.assert_allclose(np.asarray(after.gravity(q)), np.asarray(fresh.gravity(q)), atol=1e-12)
+    assert not np.allclose(np.asarray(after.gravity(q)), np.asarray(before.gravity(q)))

@@ -159,8 +159,13 @@ def loop_margins(model: DrivenDynamics, schedule: GainSchedule, law, points: int
     return max_real, radius, damping
 
 
-@functools.lru_cache(maxsize=4)
 def _reference(experiment: str, period: float, duration: float | None):
+    return _reference_of(load_robot("psm"), experiment, period, duration)
+
+
+@functools.lru_cache(maxsize=4)
+def _reference_of(robot, experiment: str, period: float, duration: float | None):
+    """Keyed by the robot loaded now too: a target reference goes through its IK."""
     return experiment_reference(experiment, period, duration)
 
 

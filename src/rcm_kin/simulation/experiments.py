@@ -62,15 +62,16 @@ def exact_key(value) -> tuple:
     raise TypeError(f"no exact key for a {type(value).__name__}")
 
 
-_BUILT: dict[tuple, object] = {}               # exact_key(params, period, substeps, fast) -> plant
-_SCHEDULES: dict[tuple, GainSchedule] = {}     # exact_key(params) -> schedule (about 0.5 s each)
-_MODELS: dict[tuple, DrivenDynamics] = {}      # exact_key(params) -> model without Coulomb friction
+# keyed by the robot loaded now (a new object after its files changed) and the exact parameter values
+_BUILT: dict[tuple, object] = {}               # (robot, exact_key(params, period, substeps, fast)) -> plant
+_SCHEDULES: dict[tuple, GainSchedule] = {}     # (robot, exact_key(params)) -> schedule (about 0.5 s each)
+_MODELS: dict[tuple, DrivenDynamics] = {}      # (robot, exact_key(params)) -> model without Coulomb friction
 
 
 def _smooth_model(params: DriveParameters) -> DrivenDynamics:
     """The driven-joint model of ``params`` without Coulomb friction, built once per process (the
     schedule's design model; its gravity gives the holding PWM)."""
-    key = exact_key(params)
+    key = (load_robot("psm"), exact_key(params))
     if key not in _MODELS:
         _MODELS[key] = driven_dynamics(load_robot("psm"), params, coulomb=False)
     return _MODELS[key]
@@ -95,7 +96,7 @@ def psm_schedule(params: DriveParameters | None = None) -> GainSchedule:
     designed on the model without Coulomb friction (as ``rcm-kin schedule``); computed once per
     process and parameter set (about 0.5 s)."""
     params = params or load_drive_parameters()
-    key = exact_key(params)
+    key = (load_robot("psm"), exact_key(params))
     if key not in _SCHEDULES:
         _SCHEDULES[key] = schedule_gains(_smooth_model(params), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
     return _SCHEDULES[key]
@@ -103,7 +104,7 @@ def psm_schedule(params: DriveParameters | None = None) -> GainSchedule:
 
 def _built_plant(params: DriveParameters, period: float, substeps: int, fast: bool) -> Plant:
     """:func:`psm_plant`, built once per process and arguments."""
-    key = exact_key((params, float(period), int(substeps), bool(fast)))
+    key = (load_robot("psm"), exact_key((params, float(period), int(substeps), bool(fast))))
     if key not in _BUILT:
         _BUILT[key] = psm_plant(params, period, substeps, fast)
     return _BUILT[key]
