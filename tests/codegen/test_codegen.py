@@ -35,7 +35,7 @@ def build(sources, folder, name="model.so"):
 
 
 def c_call(function, q):
-    """Pwm (3,), dpwm_dq (3, 3) from the C function through ctypes."""
+    """pwm (3,), dpwm_dq (3, 3) from the C function through ctypes."""
     q = np.ascontiguousarray(q, dtype=float)
     pwm, grad = np.zeros(3), np.zeros(9)
     pointer = ctypes.POINTER(ctypes.c_double)

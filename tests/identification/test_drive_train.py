@@ -66,7 +66,7 @@ def test_predict_user_errors(shared_data, capsys, tmp_path):
 
 
 def test_identify_contract(shared_data, capsys, tmp_path):
-    """Identify on three of the roll steps (the full run's cross-validated numbers are in the
+    """identify on three of the roll steps (the full run's cross-validated numbers are in the
     shipped file's header; the mechanism is tested on synthetic logs): the written file loads and
     carries the identified set, and refuses to overwrite without --force."""
     out = tmp_path / "identified.toml"

@@ -172,7 +172,7 @@ def test_map_matches_pointwise_and_rejects_bad_ranges():
 
 
 def test_counterweight_design_reproduces_osmdv_main_counterweight():
-    """OsMDV sized the main counterweight to balance roll with the DPM counterweight where it
+    """osMDV sized the main counterweight to balance roll with the DPM counterweight where it
     is (1.65 kg at 150.10 mm, 7.95 deg). The roll-balancing distance for 2.63 kg must fall in
     the span of osMDV's own gravity fits (arm lever 227.12 mm at d = 0 to 200.83 mm at d = 160,
     giving 181-218 mm); osMDV chose 200.28 mm."""

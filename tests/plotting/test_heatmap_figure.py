@@ -40,7 +40,7 @@ def drawn(monkeypatch, gmap, drive, **options):
 
 
 def plain_contour(x, y, z):
-    """Matplotlib's own contour of the whole data, 9 levels, on a figure of its own."""
+    """matplotlib's own contour of the whole data, 9 levels, on a figure of its own."""
     fig = figures.pyplot().figure()
     contours = fig.add_subplot().contour(x, y, z, levels=9)
     figures.pyplot().close(fig)

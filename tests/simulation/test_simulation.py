@@ -38,7 +38,7 @@ def as_step(F: ca.Function):
 
 
 def test_sampled_p_loop_on_integrators_is_the_geometric_sequence():
-    """Y' = b u under u = -Kp (r - y) every T with the input held: the error after the step is
+    """y' = b u under u = -Kp (r - y) every T with the input held: the error after the step is
     e_k = e_0 (1 - |b| T Kp 180/pi)^k exactly, with the step seen at the first tick at or after 0.5 s."""
     b = np.array([-0.05, -0.02, 1e-4])                   # rad (m) per s per count, hardware signs
     F = period_map(linear_forward(b), T)

@@ -36,7 +36,7 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"error: {message} (see: {self.prog} --help)\n")
 
     def _get_value(self, action, arg_string):
-        """Argparse's (private, stable) conversion, with a value refused by one of our types (:class:`BadValue`)
+        """argparse's (private, stable) conversion, with a value refused by one of our types (:class:`BadValue`)
         turned into an :class:`ArgumentValueError` naming the argument (the command's user error,
         status 2 from :func:`rcm_kin.cli.main`, like any other bad value)."""
         try:
@@ -110,7 +110,7 @@ def _shown(word: str) -> str:
 
 
 def finite(lo: float = -math.inf, hi: float = math.inf, unit: str = "", open_lo: bool = False):
-    """Argparse ``type``: a finite number within [lo, hi] (``open_lo``: above ``lo``), in ``unit``."""
+    """argparse ``type``: a finite number within [lo, hi] (``open_lo``: above ``lo``), in ``unit``."""
     bounded = math.isfinite(lo) or math.isfinite(hi)
     span = (f" in {'(' if open_lo else '['}{lo:g}, {hi:g}]" if bounded else "") + (f" {unit}" if unit else "")
 
@@ -128,7 +128,7 @@ def finite(lo: float = -math.inf, hi: float = math.inf, unit: str = "", open_lo:
 
 
 def count(lo: int, hi: int, what: str = ""):
-    """Argparse ``type``: a whole number of ``what`` within [lo, hi] (a bound on the work it asks for)."""
+    """argparse ``type``: a whole number of ``what`` within [lo, hi] (a bound on the work it asks for)."""
     def parse(word: str) -> int:
         try:
             value = int(word)
@@ -141,7 +141,7 @@ def count(lo: int, hi: int, what: str = ""):
 
 
 def path_text(word: str) -> str:
-    """Argparse ``type``: a non-empty path."""
+    """argparse ``type``: a non-empty path."""
     if not word.strip():
         raise BadValue("an empty path")
     return word

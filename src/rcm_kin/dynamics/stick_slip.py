@@ -90,7 +90,7 @@ def _lookup(x, grid, table):
 
 @numba.njit(cache=True)
 def _implicit_friction(v, J, h, F, B, static, coulomb, stribeck):
-    """V after a step of ``J v' = F - B v - f`` with ``f`` from the friction set (implicit)."""
+    """v after a step of ``J v' = F - B v - f`` with ``f`` from the friction set (implicit)."""
     p = J * v + h * F
     static = max(static, coulomb)
     if v == 0.0:

@@ -159,8 +159,6 @@ def _sidecar_path(name: str) -> Path:
     raise RcmKinError(f"unknown robot '{name}'; choose one of: {', '.join(robot_names())}")
 
 
-
-
 def _bounded_put(cache: dict, key, value):
     """``cache[key]`` unless another thread put one first; the oldest entry goes past
     :data:`_CACHE_SIZE`."""
