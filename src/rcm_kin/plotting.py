@@ -4,6 +4,7 @@ of the other joint)."""
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ IMAGE_SAMPLES = 401        # poses per axis a heat map's image is drawn from at 
 CONTOUR_SAMPLES = 301      # poses per axis a heat map's contour lines are traced on at most
 
 
+@functools.cache
 def pyplot():
     """``matplotlib.pyplot`` on the Agg backend (files only, no display), imported when the first
     figure is drawn, not when rcm_kin is: a command that draws nothing never pays for it."""
