@@ -93,3 +93,19 @@ def test_bad_grids_are_refused_by_name(change, message):
 def test_a_robot_without_the_driven_joints_is_refused():
     with pytest.raises(rk.RcmKinError, match="mtm has no roll, pitch, insertion"):
         rk.gravity_map(rk.load_robot("mtm"), roll_deg=[0.0], pitch_deg=[0.0])
+
+
+def test_the_shipped_calibration_is_not_applied_to_another_robot(tmp_path):
+    """A renamed copy of the PSM gets no default drive parameters: the shipped calibration belongs
+    to the bundled robot, and the map says so instead of applying it silently."""
+    import shutil
+
+    from rcm_kin.model.loading import urdf_dir
+
+    shutil.copy(urdf_dir() / "psm.urdf", tmp_path / "psm.urdf")
+    text = (urdf_dir() / "psm.toml").read_text().replace('robot = "psm"', 'robot = "mypsm"')
+    (tmp_path / "mypsm.toml").write_text(text)
+    mine = rk.load_robot(str(tmp_path / "mypsm.toml"))
+    with pytest.raises(rk.RcmKinError, match="calibrated on the bundled psm, not on mypsm: give `drive`"):
+        rk.gravity_map(mine, roll_deg=[0.0], pitch_deg=[0.0])
+    rk.gravity_map(mine, rk.load_drive_parameters(), roll_deg=[0.0], pitch_deg=[0.0])     # named: it runs

@@ -38,6 +38,7 @@ if TYPE_CHECKING:
     from rcm_kin.model import Robot
 
 
+SHIPPED_ROBOT = "psm"      # the robot the shipped drive parameters are calibrated on
 DEFAULT_GRID_DEG = np.linspace(-30.0, 30.0, 61)   # roll and pitch, deg (the CLI's default grid)
 MAX_POSES = 1001 * 1001   # poses of one map (the largest benchmarked: bench_gravity.py)
 BYTES_PER_POSE = 140      # peak memory per pose, measured: 1001 x 1001 poses took 135 MB more than 5 x 5
@@ -151,15 +152,20 @@ def gravity_map(robot: Robot, drive: DriveParameters | None = None, roll_deg=DEF
                 pitch_deg=DEFAULT_GRID_DEG, insertion=HOME_INSERTION, progress: bool = False) -> GravityMap:
     """Holding effort over the grid roll x pitch x insertion (degrees, degrees, metres), a
     :class:`GravityMap` with named axes. ``drive``: the drive parameters (default: the shipped,
-    calibrated set, :func:`load_drive_parameters`)."""
-    if drive is None:
-        drive = load_drive_parameters()
-    elif not isinstance(drive, DriveParameters):
-        raise RcmKinError(f"drive must be DriveParameters (load_drive_parameters(path)), got {type(drive).__name__}")
+    calibrated set, :func:`load_drive_parameters`, for the bundled PSM only: another robot, a
+    renamed copy included, names its own)."""
     missing = [j for j in DRIVEN if j not in robot.actuated]
     if missing:
         raise RcmKinError(f"a holding-effort map is over the driven joints {', '.join(DRIVEN)}; {robot.name} has no "
                           f"{', '.join(missing)}", parameter="robot")
+    if drive is None:
+        if robot.name != SHIPPED_ROBOT:
+            raise RcmKinError(f"the shipped drive parameters are calibrated on the bundled {SHIPPED_ROBOT}, not on "
+                              f"{robot.name}: give `drive` (load_drive_parameters(path)) for this robot",
+                              parameter="drive")
+        drive = load_drive_parameters()
+    elif not isinstance(drive, DriveParameters):
+        raise RcmKinError(f"drive must be DriveParameters (load_drive_parameters(path)), got {type(drive).__name__}")
     roll_deg, pitch_deg, insertion = (_grid(x, name) for x, name in
                                       ((roll_deg, "roll_deg"), (pitch_deg, "pitch_deg"), (insertion, "insertion")))
     for name, values, unit in (("roll", np.radians(roll_deg), "deg"), ("pitch", np.radians(pitch_deg), "deg"),
