@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import rcm_kin
+from rcm_kin.dynamics.drive import DEFAULT_PARAMETERS
 from rcm_kin.errors import (
     CompilerFallbackWarning,
     JointLimitError,
@@ -31,7 +32,7 @@ from rcm_kin.errors import (
 
 comp = importlib.import_module("rcm_kin.symbolic.compiled")   # the module (the package's ``compiled`` is the function)
 SOURCE = Path(rcm_kin.__file__).parent
-SHIPPED = (SOURCE / "parameters" / "psm_drive.toml").read_text()
+SHIPPED = DEFAULT_PARAMETERS.read_text()
 
 
 def drive_file(tmp_path: Path, old: str, new: str) -> Path:

@@ -1,7 +1,7 @@
 """The one home of the PSM hardware and firmware numbers that are not robot geometry.
 
 Geometry, masses and joint limits live in the URDF (``urdf/generate.py`` writes it); drive
-constants that a user calibrates live in ``parameters/psm_drive.toml``. What is left, the
+constants that a user calibrates live in ``urdf/psm_drive.toml``. What is left, the
 fixed numbers of the electronics and the flashed firmware, is here, each with its source.
 Arrays are ordered (roll, pitch, insertion).
 """

@@ -62,7 +62,7 @@ def _step_log(rows: int = 1200, bad: str | None = None) -> str:
 
 def _write_files(root: Path) -> dict[str, list[str]]:
     """The path pools: valid, boundary and hostile files of each kind, written into ``root``."""
-    shipped = (Path(__file__).resolve().parents[2] / "src/rcm_kin/parameters/psm_drive.toml").read_text()
+    shipped = (Path(__file__).resolve().parents[2] / "urdf/psm_drive.toml").read_text()
     params = {"good": shipped,
               "nan": shipped.replace("volts_per_pwm = 0.117", "volts_per_pwm = nan  # 0.117", 1),
               "zero_gear": shipped.replace("gear_ratio = 20.0", "gear_ratio = 0.0", 1),

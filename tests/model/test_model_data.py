@@ -17,7 +17,7 @@ from rcm_kin.model.loading import urdf_dir
 
 @pytest.fixture()
 def psm_copy(tmp_path):
-    for suffix in (".toml", ".urdf"):
+    for suffix in (".toml", ".urdf", "_drive.toml"):
         shutil.copy(urdf_dir() / f"psm{suffix}", tmp_path / f"psm{suffix}")
     return tmp_path / "psm.toml"
 

@@ -84,6 +84,7 @@ def test_wrong_passive_relation_is_caught(tmp_path):
     """A sidecar whose linear relations do not close the loops is refused, naming the residual."""
     text = (urdf_dir() / "psm.toml").read_text().replace('multiplier = -1.0', 'multiplier = -0.9', 1)
     (tmp_path / "psm.urdf").write_text((urdf_dir() / "psm.urdf").read_text())
+    (tmp_path / "psm_drive.toml").write_text((urdf_dir() / "psm_drive.toml").read_text())
     (tmp_path / "psm.toml").write_text(text)
     with pytest.raises(RcmKinError, match="do not close the loops"):
         load_robot(str(tmp_path / "psm.toml"))

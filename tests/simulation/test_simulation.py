@@ -394,7 +394,7 @@ def test_the_caches_follow_the_robot_loaded_now(tmp_path, monkeypatch, params):
     from rcm_kin.model.loading import urdf_dir
     from rcm_kin.simulation import experiments
 
-    for suffix in (".toml", ".urdf"):
+    for suffix in (".toml", ".urdf", "_drive.toml"):
         shutil.copy(urdf_dir() / f"psm{suffix}", tmp_path / f"psm{suffix}")
     urdf = tmp_path / "psm.urdf"
     heavier = re.sub(r'<mass value="([^"]+)"', lambda m: f'<mass value="{2 * float(m.group(1))!r}"', urdf.read_text())

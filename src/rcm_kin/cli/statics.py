@@ -133,7 +133,7 @@ def cmd_calibrate(args) -> None:
                   + "\n".join(f"{n} = {v:.6g} +- {s:.2g} {u}" for n, v, s, u in fitted)
                   + f"\nresidual RMS roll {result.residual_rms[0]:.2f}, pitch {result.residual_rms[1]:.2f} PWM; "
                   f"largest |residual| roll {result.friction_band[0]:.2f}, pitch {result.friction_band[1]:.2f} PWM."
-                  "\nFormat and assumed constants: see the shipped rcm_kin/parameters/psm_drive.toml.")
+                  "\nFormat and assumed constants: see the shipped urdf/psm_drive.toml.")
         payload["written"] = str(write_parameters(result.parameters, out, header))
     lines = [f"{n:20} {v:+.6g} +- {s:.2g} {u}" for n, v, s, u in fitted]
     lines.append(f"residual RMS: roll {result.residual_rms[0]:.2f}, pitch {result.residual_rms[1]:.2f} PWM "

@@ -9,7 +9,7 @@ ratio ``gear_ratio`` (motor rad per joint rad, or per metre for the insertion), 
     voltage   = resistance * current + torque_constant * gear_ratio * v   (V)
     pwm       = pwm_sign * voltage / volts_per_pwm    (counts; hardware sign)
 
-The parameters live in ``rcm_kin/parameters/psm_drive.toml`` (documented there); the shipped
+The parameters live in ``urdf/psm_drive.toml`` beside the PSM's sidecar (documented there); the shipped
 set is the calibrated one (:mod:`rcm_kin.identification.calibration`). The firmware's PWM saturation
 is not a drive constant: it comes from :data:`rcm_kin.hardware.PWM_LIMIT` (older files that
 still carry a ``pwm_limit`` key load when it agrees).
@@ -25,9 +25,12 @@ import numpy as np
 from rcm_kin.dynamics.axis_friction import AxisFriction
 from rcm_kin.dynamics.drive_schema import DRIVE_TRAIN, DRIVE_TRAIN_DEFAULT, JOINT_DRIVE, check_offset, check_table
 from rcm_kin.errors import ParameterFileError, RcmKinError, read_toml
+from rcm_kin.errors import RcmKinWarning, warn
 from rcm_kin.hardware import PWM_LIMIT
+from rcm_kin.model.loading import urdf_dir
 
-DEFAULT_PARAMETERS = Path(__file__).resolve().parents[1] / "parameters" / "psm_drive.toml"
+DEFAULT_PARAMETERS = urdf_dir() / "psm_drive.toml"   # the bundled PSM's calibration (its sidecar names it)
+SHIPPED_ROBOT = "psm"       # the robot a drive file that names none is taken to describe (older files)
 DRIVEN = ("roll", "pitch", "insertion")
 DRIVEN_UNIT = {"roll": "rad", "pitch": "rad", "insertion": "m"}   # SI unit of each driven joint's position
 FIRMWARE_FIELDS = ("pwm_limit",)   # JointDrive fields set from rcm_kin.hardware, not read from the file
@@ -69,9 +72,20 @@ class DriveParameters:
     gravity_offsets: dict[str, np.ndarray]   # link -> first moment (kg m) in the link's frame
     source: str = ""
     drive_train: dict[str, AxisFriction] = field(default_factory=dict)   # identified stick-slip model per joint
+    robot: str = SHIPPED_ROBOT   # the robot the file describes (its ``robot`` key)
 
     def __getitem__(self, joint: str) -> JointDrive:
         return self.joints[joint]
+
+    @property
+    def driven(self) -> tuple[str, ...]:
+        """The joints this file describes, in its order (the order of every per-joint array)."""
+        return tuple(self.joints)
+
+    @property
+    def model(self) -> str:
+        """Which model an output used, for people: ``calibration <file>``."""
+        return f"calibration {Path(self.source).name}" if self.source else "calibration (in memory)"
 
 
 @dataclass(frozen=True)
@@ -92,6 +106,13 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
     against its unit and range (:mod:`rcm_kin.dynamics.drive_schema`)."""
     path = Path(path) if path is not None else DEFAULT_PARAMETERS
     raw = read_toml(path, "drive parameter file")
+    robot = raw.get("robot", None)
+    if robot is None:
+        warn(f"{path}: names no robot (a `robot = \"...\"` line); taken as the {SHIPPED_ROBOT}'s", RcmKinWarning)
+        robot = SHIPPED_ROBOT
+    elif not isinstance(robot, str) or not robot:
+        raise ParameterFileError(f"{path}: robot must be the name of the robot the file describes, got {robot!r}"[:300],
+                                 path=path, table=None, key="robot")
     names = [f.name for f in fields(JointDrive) if f.name not in FIRMWARE_FIELDS]
     required = [f.name for f in fields(JointDrive) if f.default is MISSING and f.name in names]
     joints = {}
@@ -119,7 +140,37 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
                                  path=path, table="gravity_offsets")
     for link, value in raw.get("gravity_offsets", {}).items():
         offsets[link] = np.array(check_offset(value, path, link))
-    return DriveParameters(joints, offsets, str(path), _drive_train(path, raw.get("drive_train", {})))
+    return DriveParameters(joints, offsets, str(path), _drive_train(path, raw.get("drive_train", {})), robot)
+
+
+def check_drive(robot, params: DriveParameters) -> DriveParameters:
+    """``params`` if they describe ``robot`` (same name, joints and links that exist), else a one-line
+    :class:`~rcm_kin.errors.ParameterFileError`: a calibration is never applied to another robot."""
+    where = params.source or "the drive parameters"
+    if params.robot != robot.name:
+        raise ParameterFileError(f"{where} describes robot '{params.robot}', not '{robot.name}': give the drive "
+                                 f"parameters of {robot.name} (or none: its URDF inertias, torque only)",
+                                 path=params.source, table=None, key="robot", parameter="drive")
+    if missing := [j for j in params.driven if j not in robot.actuated]:
+        raise ParameterFileError(f"{where}: joints {', '.join(missing)} are not actuated joints of {robot.name} "
+                                 f"({', '.join(robot.actuated)})", path=params.source, table=missing[0], key=None,
+                                 parameter="drive")
+    if links := [link for link in params.gravity_offsets if not robot.tree.existBodyName(link)]:
+        raise ParameterFileError(f"{where}: [gravity_offsets] links {', '.join(links)} are not links of {robot.name}",
+                                 path=params.source, table="gravity_offsets", key=links[0], parameter="drive")
+    return params
+
+
+def robot_drive(robot) -> DriveParameters | None:
+    """The drive parameters the robot's sidecar names (its ``drive`` key), checked against the robot;
+    None when it names none: the robot then runs on its URDF inertias, torque only."""
+    path = robot.description.drive
+    return None if path is None else check_drive(robot, load_drive_parameters(path))
+
+
+def model_label(params: DriveParameters | None) -> str:
+    """Which model an output used: ``CAD (URDF inertias)`` or ``calibration <file>``."""
+    return "CAD (URDF inertias)" if params is None else params.model
 
 
 def _drive_train(path: Path, raw) -> dict[str, AxisFriction]:
@@ -150,6 +201,7 @@ def _drive_train(path: Path, raw) -> dict[str, AxisFriction]:
 def write_parameters(params: DriveParameters, path: str | Path, header: str = "") -> Path:
     """Write a drive parameter file in the format :func:`load_drive_parameters` reads."""
     lines = [f"# {line}" if line else "#" for line in header.splitlines()]
+    lines += ["", f"robot = {params.robot!r}".replace("'", '"')]
     for joint, drive in params.joints.items():
         values = {k: v for k, v in vars(drive).items() if k not in FIRMWARE_FIELDS}
         lines += ["", f"[{joint}]"] + [f"{k} = {float(v)!r}" for k, v in values.items()]

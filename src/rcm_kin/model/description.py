@@ -61,6 +61,7 @@ class RobotDescription:
     passive: tuple[PassiveRelation, ...]
     counterweights: tuple[str, ...] = ()   # links whose mass is a counterweight (removable)
     rcm: RcmDescription | None = None
+    drive: Path | None = None   # the robot's drive parameter file (its calibration); None: CAD, torque only
 
 
 def _vector3(entry: dict, key: str, where: str) -> np.ndarray:
@@ -126,7 +127,12 @@ def read_description(path: str | Path, text: str | None = None) -> RobotDescript
         if not (isinstance(joints, list) and len(joints) == 2 and all(j in actuated for j in joints)):
             raise RcmKinError(f"{at}: 'joints' must name two actuated joints")
         rcm = RcmDescription(_text(entry, "shaft_frame", at), tuple(joints), entry.get("base_frame"))
+    drive = None
+    if "drive" in raw:
+        drive = path.parent / _text(raw, "drive", where)
+        if not drive.is_file():
+            raise RcmKinError(f"{where}: drive parameter file {drive} does not exist")
     return RobotDescription(
-        robot=_text(raw, "robot", where), urdf=urdf, actuated=tuple(actuated),
+        robot=_text(raw, "robot", where), urdf=urdf, drive=drive, actuated=tuple(actuated),
         frames=tuple(raw.get("frames", ())), loops=tuple(loops), passive=tuple(passive),
         counterweights=tuple(raw.get("counterweights", ())), rcm=rcm)

@@ -42,7 +42,7 @@ def robot_names() -> list[str]:
 
 @functools.cache
 def _bundled_names() -> tuple[str, ...]:
-    return tuple(sorted(p.stem for p in urdf_dir().glob("*.toml")))
+    return tuple(sorted(p.stem for p in urdf_dir().glob("*.toml") if p.with_suffix(".urdf").is_file()))
 
 
 def _joint_q_index(model: pin.Model, name: str, where: str) -> int:
