@@ -22,7 +22,7 @@ PARAMS_HELP = "drive parameter TOML (default: the shipped calibrated set)"
 PARAMETER_FLAGS = {"params": "--params", "harmonics": "--harmonics", "duration": "--duration", "points": "--points",
                    "delta": "--delta", "error_bound": "--error-bound", "r_max": "--r-max", "renderer": "--renderer",
                    "rpy": "--rpy", "segment": "--segment", "topic": "--topic", "grid": "--grid",
-                   "pwm_limit": "--pwm-limit"}
+                   "pwm_limit": "--pwm-limit", "package_dirs": "--package-dir", "drive": "--params"}
 
 
 class Parser(argparse.ArgumentParser):

@@ -22,6 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from rcm_kin.errors import RcmKinError
+from rcm_kin.model.geometry import visual_geometry
 from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.visualization.views import robot_view, show, write_html
 
@@ -55,7 +56,7 @@ def find_browser() -> str | None:
 
 def side_camera(robot: Robot, q, margin: float = 1.5) -> SideCamera:
     """A side camera framing the robot's visual geometry at actuated ``q`` (its placements' box)."""
-    visual = pin.buildGeomFromUrdf(robot.tree, str(robot.description.urdf), pin.GeometryType.VISUAL)
+    visual = visual_geometry(robot)
     data = visual.createData()
     pin.forwardKinematics(robot.tree, robot.tree_data, tree_configuration(robot, robot.check_q(q, allow_short=True)))
     pin.updateGeometryPlacements(robot.tree, robot.tree_data, visual, data)

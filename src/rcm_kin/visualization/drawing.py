@@ -14,6 +14,7 @@ import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
+from rcm_kin.model.geometry import visual_geometry
 from rcm_kin.model.reduced import tree_configuration  # noqa: E402
 
 if TYPE_CHECKING:
@@ -48,7 +49,7 @@ def _faces(geometry) -> list[np.ndarray]:
 
 def robot_drawing(robot: Robot, q, path: str | Path, title: str = "", view=(20.0, -60.0)) -> Path:
     """Draw ``robot`` at actuated ``q`` (rad, m) in its base frame (z up) and save a PNG."""
-    visual = pin.buildGeomFromUrdf(robot.tree, str(robot.description.urdf), pin.GeometryType.VISUAL)
+    visual = visual_geometry(robot)
     data = visual.createData()
     pin.forwardKinematics(robot.tree, robot.tree_data, tree_configuration(robot, robot.check_q(q, allow_short=True)))
     pin.updateGeometryPlacements(robot.tree, robot.tree_data, visual, data)

@@ -21,6 +21,7 @@ from pinocchio.visualize import MeshcatVisualizer
 
 from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement
+from rcm_kin.model.geometry import visual_geometry
 from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.visualization.offline import OfflineWindow
 
@@ -32,7 +33,7 @@ def robot_view(robot: Robot, window=None, frames: tuple[str, ...] = ()) -> Meshc
     """A Pinocchio meshcat visualizer of ``robot`` (offline unless a ``window`` is given, e.g. a
     live ``meshcat.Visualizer().window``), showing ``frames`` (names of the robot's frames of
     interest) as axis triads."""
-    visual = pin.buildGeomFromUrdf(robot.tree, str(robot.description.urdf), pin.GeometryType.VISUAL)
+    visual = visual_geometry(robot)
     viz = MeshcatVisualizer(robot.tree, pin.GeometryModel(), visual)
     viz.initViewer(viewer=meshcat.Visualizer(window=window or OfflineWindow(robot.name)))
     viz.loadViewerModel(rootNodeName=robot.name)
