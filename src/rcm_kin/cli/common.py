@@ -81,13 +81,15 @@ def robot_parent(help_text: str) -> argparse.ArgumentParser:
 
 
 def any_robot() -> argparse.ArgumentParser:
-    """``robot``: any bundled robot (checked by ``load_robot``)."""
-    return robot_parent(f"robot name ({', '.join(robot_names())})")
+    """``robot``: a bundled robot or a user's description by path (checked by ``load_robot``)."""
+    return robot_parent(f"a bundled robot ({', '.join(robot_names())}) or the path of a robot's sidecar .toml "
+                        "or URDF")
 
 
 def psm_robot() -> argparse.ArgumentParser:
     """``robot`` of the PSM-only commands; they call :func:`require_psm` when run."""
-    return robot_parent("psm")
+    return robot_parent("psm: this command is the bundled PSM's (its thesis experiments, firmware and logs); "
+                        "other robots are refused")
 
 
 def require_psm(args, message: str) -> None:
