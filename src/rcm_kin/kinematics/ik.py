@@ -65,18 +65,33 @@ def _rotation(rpy) -> np.ndarray:
     return pin.rpy.rpyToMatrix(*rpy)
 
 
+def _sample_jacobians(robot, frame: str) -> list[np.ndarray]:
+    """``frame``'s 6 x nq Jacobian (base-frame axes) at mid-range and at a seeded pose within the limits."""
+    fid = robot.frame_id(frame)
+    lower, upper = np.maximum(robot.lower, -np.pi), np.minimum(robot.upper, np.pi)
+    return [pin.computeFrameJacobian(robot.reduced, robot.reduced_data, robot.to_reduced(q), fid,
+                                     pin.LOCAL_WORLD_ALIGNED)[:, robot.reduced_q_actuated]
+            for q in (0.5 * (lower + upper), np.random.default_rng(0).uniform(lower, upper))]
+
+
 def moving_joints(robot, frame: str, orientation: bool = False) -> tuple[str, ...]:
     """The actuated joints (actuated order) that move ``frame``'s position, and its orientation
     when ``orientation``: a nonzero Jacobian column at mid-range or at a seeded pose within the limits."""
-    fid = robot.frame_id(frame)
     rows = slice(0, 6) if orientation else slice(0, 3)
     moved = np.zeros(robot.nq, dtype=bool)
-    lower, upper = np.maximum(robot.lower, -np.pi), np.minimum(robot.upper, np.pi)
-    for q in (0.5 * (lower + upper), np.random.default_rng(0).uniform(lower, upper)):
-        J = pin.computeFrameJacobian(robot.reduced, robot.reduced_data, robot.to_reduced(q), fid,
-                                     pin.LOCAL_WORLD_ALIGNED)[rows][:, robot.reduced_q_actuated]
-        moved |= np.linalg.norm(J, axis=0) > 1e-9
+    for J in _sample_jacobians(robot, frame):
+        moved |= np.linalg.norm(J[rows], axis=0) > 1e-9
     return tuple(name for name, m in zip(robot.actuated, moved) if m)
+
+
+def _check_turns(robot, frame: str, joints: tuple[str, ...]) -> None:
+    """A full pose needs ``joints`` to move ``frame`` in six independent directions."""
+    cols = [robot.actuated.index(j) for j in joints]
+    rank = max(int(np.sum(np.linalg.svd(J[:, cols], compute_uv=False) > 1e-9))
+               for J in _sample_jacobians(robot, frame))
+    if rank < 6:
+        raise RcmKinError(f"`rpy` asks for a full pose of {frame}, which its joints move in {rank} independent "
+                          "directions only (6 needed): give the position alone or another `frame`", parameter="rpy")
 
 
 def default_frame(robot, orientation: bool = False) -> str:
@@ -114,6 +129,8 @@ def inverse_kinematics(robot, position, rpy=None, frame: str | None = None, q0=N
         joints = moving_joints(robot, frame, rotation is not None)
         if not joints:
             raise RcmKinError(f"no actuated joint of {robot.name} moves {frame} (`frame`)", parameter="frame")
+        if rotation is not None:
+            _check_turns(robot, frame, joints)
         q_full = solve_ik(robot, frame, position, rotation, q0=q0, joints=joints).q
     return _solution(robot, frame, joints, q_full, position, rotation, NUMERIC)
 

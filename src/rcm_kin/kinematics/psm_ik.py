@@ -219,7 +219,9 @@ def shaft_tip_applies(robot: Robot) -> bool:
     ``[rcm]`` pivots ``roll`` and ``pitch`` move ``shaft_tip`` about the ``rcm`` frame, with
     ``insertion`` along the shaft (a structural check: a renamed copy fits)."""
     rcm = robot.description.rcm
-    if rcm is None or rcm.shaft_frame != "shaft_tip" or tuple(rcm.joints) != ARM[:2] or "insertion" not in robot.actuated:
+    if rcm is None or rcm.shaft_frame != "shaft_tip" or tuple(rcm.joints) != ARM[:2]:
+        return False
+    if "insertion" not in robot.actuated:
         return False
     if not all(robot.reduced.existFrame(f) for f in ("rcm", "shaft_tip")):
         return False
