@@ -185,8 +185,8 @@ def test_dvrk_dh_psm_cli_by_path(dvrk, capsys):
     assert set(out) == {"q", "position_error", "frame", "joints", "method"}
 
 
-def test_closed_form_wrap_and_nearest_q0(dvrk):
-    """Both Paden-Kahan solutions of a target: the principal one by default, the other nearest to q0."""
+def test_pivot_angles_gives_both_solutions(dvrk):
+    """Paden-Kahan subproblem 2 returns both pivot pairs of a shaft direction, each checked by rotation matrices."""
     robot = load_robot(dvrk)
     chain = rcm_chain(robot)
     u = dvrk_dh_fk([0.4, 0.3, 0.2, 0, 0, 0])[3][:3, 3]
