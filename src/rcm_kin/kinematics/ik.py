@@ -91,7 +91,8 @@ def _check_turns(robot, frame: str, joints: tuple[str, ...]) -> None:
                for J in _sample_jacobians(robot, frame))
     if rank < 6:
         raise RcmKinError(f"`rpy` asks for a full pose of {frame}, which its joints move in {rank} independent "
-                          "directions only (6 needed): give the position alone or another `frame`", parameter=("rpy", "frame"))
+                          "directions only (6 needed): give the position alone or another `frame`",
+                          parameter=("rpy", "frame"))
 
 
 def default_frame(robot, orientation: bool = False) -> str:
