@@ -51,6 +51,9 @@ class RcmChain:
     offset: float                  # m, shaft_frame origin - rcm along ``shaft`` at rest
     insertion_rate: float          # m of travel along the shaft per unit of the insertion joint
     line_error: float              # m, how far the pivots move the rest shaft line's RCM point (first order)
+    lower: np.ndarray              # (3,) limits of ``joints``
+    upper: np.ndarray
+    revolute: np.ndarray           # (2,) whether each pivot is revolute (its angle wraps)
 
 
 def _jacobian(robot: Robot, q: np.ndarray, fid: int) -> np.ndarray:
@@ -97,9 +100,11 @@ def _chain(robot: Robot, rest: tuple[float, ...]) -> RcmChain:
     w1 = _jacobian(robot, turned, fid)[3:, pivots[1]]
     outer = 0 if np.linalg.norm(w1 / rates[1] - axes[1]) > 1e-9 else 1
     insertion_rate = float(J[:3, insertion] @ shaft)
-    return RcmChain(rcm.shaft_frame, (*rcm.joints, robot.actuated[insertion]), np.array([*pivots, insertion]),
-                    np.array(rest), M.translation + s * shaft, axes, rates, outer, shaft, -s, insertion_rate,
-                    line_error)
+    index = np.array([*pivots, insertion])
+    revolute = np.array([robot.joint_kind(rcm.joints[j]) == "revolute" for j in (0, 1)])
+    return RcmChain(rcm.shaft_frame, (*rcm.joints, robot.actuated[insertion]), index, np.array(rest),
+                    M.translation + s * shaft, axes, rates, outer, shaft, -s, insertion_rate, line_error,
+                    robot.lower[index].copy(), robot.upper[index].copy(), revolute)
 
 
 def _insertion(robot: Robot, q: np.ndarray, fid: int, pivots: list[int]) -> int:
@@ -128,10 +133,15 @@ def _insertion(robot: Robot, q: np.ndarray, fid: int, pivots: list[int]) -> int:
     return found[0]
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of two 3-vectors (numpy's general one costs ten times more)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
 def _rotation_angle(axis: np.ndarray, p: np.ndarray, q: np.ndarray) -> float:
     """Paden-Kahan subproblem 1: the angle about unit ``axis`` turning ``p`` onto ``q``."""
     p_perp, q_perp = p - axis * (axis @ p), q - axis * (axis @ q)
-    return float(np.arctan2(axis @ np.cross(p_perp, q_perp), p_perp @ q_perp))
+    return float(np.arctan2(axis @ _cross(p_perp, q_perp), p_perp @ q_perp))
 
 
 def pivot_angles(axis_outer: np.ndarray, axis_inner: np.ndarray, p: np.ndarray, q: np.ndarray,
@@ -140,7 +150,7 @@ def pivot_angles(axis_outer: np.ndarray, axis_inner: np.ndarray, p: np.ndarray, 
     ``exp(axis_outer theta_outer) exp(axis_inner theta_inner) p = q`` (unit axes through one point,
     ``|p| = |q|``); none, one or two pairs."""
     c = float(axis_outer @ axis_inner)
-    normal = np.cross(axis_outer, axis_inner)
+    normal = _cross(axis_outer, axis_inner)
     if normal @ normal < 1e-18:
         raise RcmKinError("the two [rcm] joints turn the shaft about parallel axes")
     alpha = (q @ axis_outer - c * (p @ axis_inner)) / (1 - c * c)
@@ -171,9 +181,9 @@ def _broken_limits(robot: Robot, names, values) -> list[str]:
     return broken
 
 
-def _candidates(robot: Robot, chain: RcmChain, d: np.ndarray, side: float) -> list[np.ndarray]:
-    """Pivot and insertion values pointing the shaft along ``side * d`` (wrapped variants of the
-    revolute pivots included), the pivots' principal values first."""
+def _candidates(chain: RcmChain, d: np.ndarray, side: float, wraps: bool) -> list[np.ndarray]:
+    """Pivot and insertion values pointing the shaft along ``side * d``, the pivots' principal values
+    first (then, with ``wraps``, the revolute pivots' values 2 pi / rate apart)."""
     dist = float(np.linalg.norm(d))
     u = side * d / dist
     q_ins = (side * dist - chain.offset) / chain.insertion_rate
@@ -184,11 +194,13 @@ def _candidates(robot: Robot, chain: RcmChain, d: np.ndarray, side: float) -> li
         theta[outer], theta[inner] = th_outer, th_inner
         found.append(np.array([*(theta / chain.rates), q_ins]))
     found.sort(key=lambda c: (abs(c[inner]), abs(c[outer])))
+    if not wraps:
+        return found
     wrapped = []
     for c in found:
         for k in (1, -1, 2, -2):
             for j in (0, 1):
-                if robot.joint_kind(chain.joints[j]) == "revolute":
+                if chain.revolute[j]:
                     variant = c.copy()
                     variant[j] += k * 2 * np.pi / chain.rates[j]
                     wrapped.append(variant)
@@ -211,21 +223,28 @@ def rcm_ik(robot: Robot, target, q0=None) -> tuple[np.ndarray, RcmChain]:
                           parameter="position")
     chain = rcm_chain(robot, q0)
     d = target - chain.rcm
-    shown = f"({', '.join(f'{x:.4f}' for x in target)}) m"
     if np.linalg.norm(d) < AT_RCM:
-        raise RcmKinError(f"{chain.shaft_frame} target {shown} is the remote centre of motion itself: "
+        raise RcmKinError(f"{chain.shaft_frame} target {_shown(target)} is the remote centre of motion itself: "
                           "the shaft direction is undetermined there", parameter="position")
     i = robot.actuated.index(chain.joints[2])
     mid = chain.offset + chain.insertion_rate * 0.5 * (robot.lower[i] + robot.upper[i])
     usual = 1.0 if mid >= 0 else -1.0
-    ranked = [(side, c) for side in (usual, -usual) for c in _candidates(robot, chain, d, side)]
-    valid = [c for _, c in ranked if not _broken_limits(robot, chain.joints, c)]
-    if not valid:
-        raise _out_of_reach(robot, chain, d, usual, ranked, shown)
+    for wraps in (False, True) if q0 is None else (True,):
+        ranked = [(side, c) for side in (usual, -usual) for c in _candidates(chain, d, side, wraps)]
+        valid = [c for _, c in ranked
+                 if np.all(chain.lower - LIMIT_TOL <= c) and np.all(c <= chain.upper + LIMIT_TOL)]
+        if valid:
+            break
+    else:
+        raise _out_of_reach(robot, chain, d, usual, ranked, _shown(target))
     best = valid[0] if q0 is None else min(valid, key=lambda c: np.linalg.norm(c - chain.rest[chain.index]))
     q = chain.rest.copy()
     q[chain.index] = best
     return q, chain
+
+
+def _shown(target: np.ndarray) -> str:
+    return f"({', '.join(f'{x:.4f}' for x in target)}) m"
 
 
 def _out_of_reach(robot, chain, d, usual, ranked, shown) -> RcmKinError:
