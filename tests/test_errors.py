@@ -175,7 +175,7 @@ def test_library_messages_name_parameters(mtm):
     from rcm_kin.identification.excitation import check_request
     from rcm_kin.kinematics.ik import inverse_kinematics
 
-    cases = [(lambda: inverse_kinematics(mtm, [0.2, 0.0, -0.2], [0, 0, 0]), "rpy"),
+    cases = [(lambda: inverse_kinematics(mtm, [0.2, 0.0, -0.2], [0, float("nan"), 0]), "rpy"),
              (lambda: check_request(10.0, ["roll"], 1), "harmonics"),
              (lambda: parse_grid("a:b"), "grid"), (lambda: parse_grid("1,2"), "grid")]
     for call, parameter in cases:
@@ -203,8 +203,9 @@ def test_no_library_message_names_a_flag():
 
 
 @pytest.mark.parametrize("argv, line", [
-    (["ik", "mtm", "0.2", "0", "-0.2", "--rpy", "0", "0", "0"],
-     "error: --rpy is for the PSM tool; the MTM IK places its wrist centre"),
+    (["ik", "mtm", "0.2", "0", "-0.2", "--frame", "wrist_center", "--rpy", "0", "0", "0"],
+     "error: --rpy asks for a full pose of wrist_center, which its joints move in 3 independent directions only "
+     "(6 needed): give the position alone or another --frame"),
     (["schedule", "psm", "--grid", "a:b", "--out", "gains"], "error: --grid values must be numbers, got 'a:b'"),
 ])
 def test_the_cli_names_the_flags(capsys, tmp_path, monkeypatch, argv, line):

@@ -74,7 +74,8 @@ def test_ik_contract_round_trip(capsys):
     (["fk", "psm", *["0"] * 8], "takes 7 joint values"),
     (["fk", "kuka"], "unknown robot 'kuka'"),
     (["ik", "psm", "0", "0"], "the following arguments are required"),
-    (["ik", "mtm", "0.2", "0", "-0.2", "--rpy", "0", "0", "0"], "--rpy is for the PSM"),
+    (["ik", "mtm", "0.2", "0", "-0.2", "--frame", "nope"], "mtm has no frame 'nope' (--frame)"),
+    (["ik", "psm", "0", "0", "0"], "the remote centre of motion itself"),
     (["fk", "psm", "nan"], "finite"),
 ])
 def test_user_errors_are_one_line(capsys, argv, message):

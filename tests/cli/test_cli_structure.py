@@ -88,8 +88,8 @@ def test_inverse_kinematics_round_trip(name, q, rpy):
         np.testing.assert_allclose(solution.q, q, atol=1e-9)
 
 
-@pytest.mark.parametrize("name, rpy, message", [("mtm", [0, 0, 0], "`rpy` is for the PSM"),
-                                                ("davinci", None, "no IK for robot 'davinci'"),
+@pytest.mark.parametrize("name, rpy, message", [("mtm", [0, np.nan, 0], "`rpy` is 3 finite angles"),
+                                                ("davinci", [0, 0], "`rpy` is 3 finite angles"),
                                                 ("psm", None, "out of reach")])
 def test_inverse_kinematics_errors(name, rpy, message):
     target = [1.0, 1.0, 1.0] if name == "psm" else [0.2, 0.0, -0.2]

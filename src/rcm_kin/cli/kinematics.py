@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from rcm_kin.cli.common import RAW, add_json, any_robot, emit, floats, joint_values, robot_parent
+from rcm_kin.cli.common import RAW, add_json, any_robot, emit, floats, joint_values
 from rcm_kin.model import GRAVITY, joint_table, load_robot
 
 EPILOG_FK = "example: rcm-kin fk psm 10 -5 0.08 --deg --json   (roll 10 deg, pitch -5 deg, insertion 0.08 m)"
 EPILOG_IK = ("examples: rcm-kin ik psm 0.01 0.02 -0.06 --json   (shaft tip at x y z in m, base frame)\n"
              "          rcm-kin ik psm -0.009 0 -0.073 --rpy 0 61 -180 --deg   (tool_tip pose, numeric)\n"
-             "          rcm-kin ik mtm 0.26 0.02 -0.2 --json   (MTM wrist centre)")
+             "          rcm-kin ik mtm 0.26 0.02 -0.2 --json   (MTM wrist centre)\n"
+             "          rcm-kin ik path/to/arm.toml 0.4 0.1 0.3 --frame tool0   (any robot, any frame)")
 
 
 def add_info(sub) -> None:
@@ -31,12 +32,16 @@ def add_fk(sub) -> None:
 
 
 def add_ik(sub) -> None:
-    p = sub.add_parser("ik", help="inverse kinematics: PSM shaft tip or tool pose, MTM wrist centre",
-                       parents=[robot_parent("psm or mtm")], epilog=EPILOG_IK, formatter_class=RAW)
+    p = sub.add_parser("ik", help="inverse kinematics of any robot: closed form about the RCM where the description "
+                                  "has [rcm], damped least squares otherwise", parents=[any_robot()],
+                       epilog=EPILOG_IK, formatter_class=RAW)
     for axis in "xyz":
         p.add_argument(axis, metavar=axis.upper(), help=f"target {axis} in m, base frame")
+    p.add_argument("--frame", metavar="F",
+                   help="the frame to place (default: the [rcm] shaft frame, else the last frame of interest "
+                        "that three joints place, or the last one with --rpy)")
     p.add_argument("--rpy", nargs=3, metavar=("R", "P", "Y"),
-                   help="PSM only: also the tool_tip orientation as roll pitch yaw (rad, or deg with --deg)")
+                   help="also the frame's orientation as roll pitch yaw (rad, or deg with --deg)")
     p.add_argument("--deg", action="store_true", help="--rpy in degrees")
     add_json(p, "machine-readable output (SI)")
     p.set_defaults(func=cmd_ik)
@@ -96,9 +101,10 @@ def cmd_ik(args) -> None:
     robot = load_robot(args.robot)
     target = floats([args.x, args.y, args.z], "the target x y z")
     rpy = None if args.rpy is None else floats(args.rpy, "--rpy")
-    solution = inverse_kinematics(robot, target, np.radians(rpy) if args.deg and rpy is not None else rpy)
+    solution = inverse_kinematics(robot, target, np.radians(rpy) if args.deg and rpy is not None else rpy,
+                                  frame=args.frame)
     payload = {"q": solution.q.tolist(), "position_error": solution.position_error, "frame": solution.frame,
-               "joints": list(solution.joints)}
+               "joints": list(solution.joints), "method": solution.method}
     if solution.orientation_error is not None:
         payload["orientation_error"] = solution.orientation_error
     shown = [f"{n} {np.degrees(v):.4f} deg" if robot.joint_kind(n) == "revolute" else f"{n} {v * 1e3:.4f} mm"

@@ -1,9 +1,16 @@
-"""Closed-form inverse kinematics of an RCM arm: shaft-tip position and wrist orientation.
+"""Closed-form inverse kinematics of the bundled PSM's layout: shaft-tip position and wrist orientation.
 
 The real inverse of the roll-pitch-insertion RCM kinematics (not the thesis firmware's
 ``atan2(...)/4`` motion scaling). Axes and offsets are read from the model, so any robot
 whose roll axis, pitch axis and shaft are mutually orthogonal and meet at the RCM works.
 Positions in m in the base frame; angles in rad.
+
+:func:`shaft_tip_ik` is the twin of the generic closed form :func:`rcm_kin.kinematics.rcm_ik.rcm_ik`
+(which reads only the sidecar's ``[rcm]``): a second derivation (roll and pitch from ``atan2`` on
+the orthogonal axes, not Paden-Kahan subproblem 2), kept for the PSM's callers (teleoperation,
+safety scenarios, the tool-pose start) and tested against the generic one to 1e-9. It also
+answers a target at the RCM itself (insertion at the tip offset, shaft straight), which the
+generic solver refuses as undetermined.
 """
 
 from __future__ import annotations
@@ -205,6 +212,40 @@ def _wrist_constants(robot: Robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise RcmKinError(f"{robot.name}: tool_tip must sit on the wrist yaw link")
     return (model.jointPlacements[ids[1]].rotation.copy(), model.jointPlacements[ids[2]].rotation.copy(),
             tool.placement.rotation.copy())
+
+
+def shaft_tip_applies(robot: Robot) -> bool:
+    """Whether :func:`shaft_tip_ik` (the twin of the generic closed form) fits ``robot``: its
+    ``[rcm]`` pivots ``roll`` and ``pitch`` move ``shaft_tip`` about the ``rcm`` frame, with
+    ``insertion`` along the shaft (a structural check: a renamed copy fits)."""
+    rcm = robot.description.rcm
+    if rcm is None or rcm.shaft_frame != "shaft_tip" or tuple(rcm.joints) != ARM[:2]:
+        return False
+    if "insertion" not in robot.actuated:
+        return False
+    if not all(robot.reduced.existFrame(f) for f in ("rcm", "shaft_tip")):
+        return False
+    try:
+        rcm_geometry(robot)
+    except RcmKinError:
+        return False
+    return True
+
+
+def tool_pose_applies(robot: Robot, frame: str) -> bool:
+    """Whether :func:`tool_pose_ik` fits ``robot`` and ``frame``: the roll-pitch-insertion arm about
+    an RCM (frames ``rcm``, ``shaft_tip``, ``instrument_shaft``), the three-joint z-axis wrist and
+    the jaw of this module, ``frame`` being ``tool_tip`` (a structural check: a renamed copy fits)."""
+    if frame != "tool_tip" or not all(n in robot.actuated for n in (*ARM, *WRIST, "jaw")):
+        return False
+    if not all(robot.reduced.existFrame(f) for f in ("rcm", "shaft_tip", "instrument_shaft", "tool_tip")):
+        return False
+    try:
+        rcm_geometry(robot)
+        _wrist_constants(robot)
+    except RcmKinError:
+        return False
+    return True
 
 
 def tool_pose_ik(robot: Robot, position, rotation: np.ndarray, jaw: float = 0.0):
