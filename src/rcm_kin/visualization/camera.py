@@ -98,10 +98,10 @@ def framing(points: np.ndarray, margin: float = MARGIN) -> SideCamera:
     return SideCamera(0.5 * (low + high), float(near + 0.5 * (high[1] - low[1])))
 
 
-def pose_points(robot: Robot, visual: pin.GeometryModel, data: pin.GeometryData, q) -> np.ndarray:
+def pose_points(robot: Robot, tree_data: pin.Data, visual: pin.GeometryModel, data: pin.GeometryData,
+                q) -> np.ndarray:
     """The points a camera frames with the robot at actuated ``q``: its visual geometry's box
     corners, or its joints' origins when it has no visual geometry."""
-    tree_data = robot.tree.createData()
     pin.forwardKinematics(robot.tree, tree_data, tree_configuration(robot, robot.check_q(q, allow_short=True)))
     pin.updateGeometryPlacements(robot.tree, tree_data, visual, data)
     points = geometry_points(visual, data)
@@ -113,10 +113,10 @@ def side_camera(robot: Robot, q, margin: float = MARGIN, package_dirs=None) -> S
     trajectory ``q`` (N, nq); ``package_dirs`` as for
     :func:`~rcm_kin.model.geometry.visual_geometry`."""
     visual = visual_geometry(robot, package_dirs)
-    data = visual.createData()
+    data, tree_data = visual.createData(), robot.tree.createData()
     poses = np.asarray(q, dtype=float)
     poses = poses.reshape(1, -1) if poses.ndim < 2 else poses
-    return framing(np.vstack([pose_points(robot, visual, data, p) for p in poses]), margin)
+    return framing(np.vstack([pose_points(robot, tree_data, visual, data, p) for p in poses]), margin)
 
 
 def view_points(viz: MeshcatVisualizer) -> np.ndarray:
