@@ -6,6 +6,7 @@ from pathlib import Path
 
 from rcm_kin.cli.common import (
     RAW,
+    BadValue,
     add_force,
     add_json,
     any_robot,
@@ -21,6 +22,7 @@ from rcm_kin.model import load_robot
 from rcm_kin.statics.maps import MAX_POSES
 
 EPILOG_VIEW = ("examples: rcm-kin view psm --q 10 -5 0.08 --deg --html psm.html   (self-contained page)\n"
+               "          rcm-kin view my_arm.toml --package-dir my_arm_description=./meshes_pkg --html arm.html\n"
                "          rcm-kin view mtm --frames wrist_center tool_tip   (serves on localhost, prints the URL)\n"
                "          rcm-kin view psm --q 10 -5 0.08 --deg --png psm.png   (matplotlib drawing)\n"
                "          rcm-kin view psm --q 10 -5 0.08 --deg --png psm.png --renderer browser   (Chromium)")
@@ -39,9 +41,32 @@ def add_view(sub) -> None:
     p.add_argument("--png", metavar="FILE.png", help="write a picture instead of serving (see --renderer)")
     p.add_argument("--renderer", choices=("matplotlib", "browser"), default="matplotlib",
                    help="--png: a matplotlib drawing (default), or the meshcat page as headless Chromium draws it")
+    p.add_argument("--package-dir", action="append", default=[], type=package_dir, metavar="NAME=DIR",
+                   help="the folder of ROS package NAME, for the URDF's package://NAME/... meshes (repeatable; "
+                        "ROS_PACKAGE_PATH is searched too)")
     add_force(p)
     add_json(p, '{"robot", "q", "written": [files]} (with --html or --png)')
     p.set_defaults(func=cmd_view)
+
+
+def package_dir(text: str) -> tuple[str, str]:
+    """``NAME=DIR`` of ``--package-dir``."""
+    name, sep, folder = text.partition("=")
+    if not (sep and name.strip() and folder.strip()):
+        raise BadValue(f"'{text}' is not NAME=DIR (a ROS package's name and its folder)")
+    return name.strip(), folder.strip()
+
+
+def package_dirs(args) -> dict[str, str] | None:
+    """The ``--package-dir`` pairs as {NAME: DIR} (None when none is given); a folder that is not
+    one, or a name given twice, is an error."""
+    found: dict[str, str] = {}
+    for name, folder in args.package_dir:
+        if not Path(folder).is_dir():
+            raise RcmKinError(f"--package-dir {name}={folder}: {folder} is not a folder")
+        if found.setdefault(name, folder) != folder:
+            raise RcmKinError(f"--package-dir: package '{name}' given twice ({found[name]}, {folder})")
+    return found or None
 
 
 def add_report(sub) -> None:
@@ -65,31 +90,33 @@ def cmd_view(args) -> None:
     robot = load_robot(args.robot)
     q = joint_values(robot, args)
     frames = tuple(args.frames or ())
+    packages = package_dirs(args)
     if args.renderer != "matplotlib" and args.png is None:
         raise RcmKinError(f"--renderer {args.renderer} draws the --png picture: give --png FILE.png")
     png = None if args.png is None else new_output(args.png, args.force, (".png",))
     page = None if args.html is None else new_output(args.html, args.force, (".html", ".htm"))
+    if png or page:                   # meshes and frames found (or one error line) before any file is written
+        viz = robot_view(robot, frames=frames, package_dirs=packages)
+        show(viz, robot, q)
     written = []
     if png and args.renderer == "browser":
         from rcm_kin.visualization.browser import browser_png
 
-        written.append(str(browser_png(robot, q, png, frames)))
+        written.append(str(browser_png(robot, q, png, frames, package_dirs=packages)))
     elif png:
         from rcm_kin.visualization.drawing import robot_drawing
 
-        written.append(str(robot_drawing(robot, q, png, title=robot.name.upper())))
+        written.append(str(robot_drawing(robot, q, png, title=robot.name.upper(), package_dirs=packages)))
     if page:
-        viz = robot_view(robot, frames=frames)
-        show(viz, robot, q)
         written.append(str(write_html(viz, page)))
     if written:
         emit(args, {"robot": robot.name, "q": q.tolist(), "written": written},
              "\n".join(f"wrote {f}" for f in written))
         return
-    _serve(robot, q, frames)
+    _serve(robot, q, frames, packages)
 
 
-def _serve(robot, q, frames: tuple[str, ...]) -> None:
+def _serve(robot, q, frames: tuple[str, ...], packages=None) -> None:
     """A live meshcat server showing ``robot`` at ``q`` until Ctrl-C or SIGTERM; the server process
     is stopped either way."""
     import signal
@@ -105,7 +132,7 @@ def _serve(robot, q, frames: tuple[str, ...]) -> None:
     live = meshcat.Visualizer()            # starts the meshcat server and prints its URL
     previous = signal.signal(signal.SIGTERM, stop)
     try:
-        viz = robot_view(robot, window=live.window, frames=frames)
+        viz = robot_view(robot, window=live.window, frames=frames, package_dirs=packages)
         show(viz, robot, q)
         print("serving; press Ctrl-C to stop", flush=True)
         while True:

@@ -2,7 +2,8 @@
 
 import lazy_loader
 
-__all__ = ["OfflineWindow", "animate", "browser_png", "robot_drawing", "robot_view", "show", "write_html"]
+__all__ = ["OfflineWindow", "SideCamera", "animate", "browser_png", "robot_drawing", "robot_view", "set_camera",
+           "show", "side_camera", "write_html"]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,
@@ -11,5 +12,6 @@ __getattr__, __dir__, _ = lazy_loader.attach(
         "offline": ["OfflineWindow"],
         "drawing": ["robot_drawing"],
         "browser": ["browser_png"],
+        "camera": ["SideCamera", "side_camera", "set_camera"],
     },
 )

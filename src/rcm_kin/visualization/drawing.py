@@ -47,9 +47,11 @@ def _faces(geometry) -> list[np.ndarray]:
     return []
 
 
-def robot_drawing(robot: Robot, q, path: str | Path, title: str = "", view=(20.0, -60.0)) -> Path:
-    """Draw ``robot`` at actuated ``q`` (rad, m) in its base frame (z up) and save a PNG."""
-    visual = visual_geometry(robot)
+def robot_drawing(robot: Robot, q, path: str | Path, title: str = "", view=(20.0, -60.0),
+                  package_dirs=None) -> Path:
+    """Draw ``robot`` at actuated ``q`` (rad, m) in its base frame (z up) and save a PNG
+    (``package_dirs`` finds ``package://`` meshes: see :func:`~rcm_kin.model.geometry.visual_geometry`)."""
+    visual = visual_geometry(robot, package_dirs)
     data = visual.createData()
     pin.forwardKinematics(robot.tree, robot.tree_data, tree_configuration(robot, robot.check_q(q, allow_short=True)))
     pin.updateGeometryPlacements(robot.tree, robot.tree_data, visual, data)

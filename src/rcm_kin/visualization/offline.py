@@ -3,13 +3,16 @@ it as one self-contained HTML page (the viewer's JavaScript inlined, no network 
 
 ``meshcat.Visualizer(window=OfflineWindow())`` takes every meshcat and Pinocchio-visualizer
 call; :meth:`OfflineWindow.get_scene` returns the page (what ``Visualizer.static_html()``
-asks the server for).
+asks the server for). A ``set_target`` command (the point the camera's orbit controls look at,
+which the viewer of meshcat 0.3.2 cannot take as a command) is kept and set by the page after
+the scene is replayed.
 """
 
 from __future__ import annotations
 
 import base64
 import html
+import json
 from pathlib import Path
 
 import meshcat
@@ -27,9 +30,14 @@ class OfflineWindow:
     def __init__(self, title: str = "rcm-kin"):
         self.tree = SceneTree()
         self.title = title
+        self.camera_target: list[float] | None = None     # camera frame (y up), m
 
     def send(self, command) -> None:
+        """Keep ``command`` as the meshcat server would (a property replaces its earlier value)."""
         data = command.lower()
+        if data["type"] == "set_target":
+            self.camera_target = [float(v) for v in data["value"]]
+            return
         path = [p for p in data["path"].split("/") if p]
         packed = umsgpack.packb(data)
         kind = data["type"]
@@ -47,16 +55,21 @@ class OfflineWindow:
         elif kind == "set_transform":
             node.transform = packed
         elif kind == "set_property":
+            node.properties = [p for p in node.properties if umsgpack.unpackb(p)["property"] != data["property"]]
             node.properties.append(packed)
         elif kind == "set_animation":
             node.animation = packed
 
     def get_scene(self) -> str:
+        """The scene as one self-contained HTML page."""
         commands = []
         for node in walk(self.tree):
             blobs = [node.object, *node.properties, node.transform, node.animation]
             commands += [base64.b64encode(b).decode("ascii") for b in blobs if b is not None]
         calls = "\n".join(f'load("{c}");' for c in commands)
+        if self.camera_target is not None:
+            calls += (f"\nviewer.controls.target.set(...{json.dumps(self.camera_target)});"
+                      "\nviewer.controls.update();\nviewer.set_dirty();")
         return (f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>{html.escape(self.title)}</title>"
                 "<style>body{margin:0}#meshcat-pane{width:100vw;height:100vh;overflow:hidden}</style></head>"
                 f"<body><div id='meshcat-pane'></div><script>{VIEWER_JS.read_text()}</script><script>\n"

@@ -3,7 +3,9 @@ geometry placed by the open tree (the loop's passive joints solved from the actu
 frames of interest on demand, trajectory animations, and a trail of points coloured by a scalar.
 
 A view is served live (``meshcat.Visualizer()`` starts the meshcat server) or kept offline
-(:class:`rcm_kin.visualization.offline.OfflineWindow`) and written with :func:`write_html`.
+(:class:`rcm_kin.visualization.offline.OfflineWindow`) and written with :func:`write_html`, which
+records the side camera of :mod:`rcm_kin.visualization.camera` in the page (the camera of the
+browser's PNG render): the page opens with the robot framed.
 """
 
 from __future__ import annotations
@@ -23,17 +25,19 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.model.geometry import visual_geometry
 from rcm_kin.model.reduced import tree_configuration
+from rcm_kin.visualization.camera import SideCamera, framing, set_camera, view_points
 from rcm_kin.visualization.offline import OfflineWindow
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
 
 
-def robot_view(robot: Robot, window=None, frames: tuple[str, ...] = ()) -> MeshcatVisualizer:
+def robot_view(robot: Robot, window=None, frames: tuple[str, ...] = (), package_dirs=None) -> MeshcatVisualizer:
     """A Pinocchio meshcat visualizer of ``robot`` (offline unless a ``window`` is given, e.g. a
     live ``meshcat.Visualizer().window``), showing ``frames`` (names of the robot's frames of
-    interest) as axis triads."""
-    visual = visual_geometry(robot)
+    interest) as axis triads; ``package_dirs`` ({NAME: folder}) finds ``package://`` meshes, as
+    for :func:`~rcm_kin.model.geometry.visual_geometry`."""
+    visual = visual_geometry(robot, package_dirs)
     viz = MeshcatVisualizer(robot.tree, pin.GeometryModel(), visual)
     viz.initViewer(viewer=meshcat.Visualizer(window=window or OfflineWindow(robot.name)))
     viz.loadViewerModel(rootNodeName=robot.name)
@@ -52,21 +56,26 @@ def show(viz: MeshcatVisualizer, robot: Robot, q) -> None:
 
 def animate(viz: MeshcatVisualizer, robot: Robot, Q: np.ndarray, period: float, every: int = 1) -> None:
     """Record the actuated trajectory ``Q`` (N, nq) sampled every ``period`` s as a meshcat
-    animation (every ``every``-th sample), played in the page's controls."""
+    animation (every ``every``-th sample), played in the page's controls; an offline view records
+    the side camera framing every recorded pose."""
     Q = np.atleast_2d(Q)
     if not (period > 0 and every >= 1 and len(Q) >= 2):
         raise RcmKinError("an animation needs at least 2 poses, a positive period and every >= 1")
     fps = 1.0 / (period * every)
     animation = Animation(default_framerate=fps)
     live = viz.viewer
+    points = []
     try:
         for k, q in enumerate(Q[::every]):
             with animation.at_frame(live, k) as frame:
                 viz.viewer = frame                 # the visualizer writes its transforms into the frame
                 show(viz, robot, q)
+                points.append(view_points(viz))
     finally:
         viz.viewer = live
     live.set_animation(animation, play=False)
+    if isinstance(live.window, OfflineWindow):
+        set_camera(viz, framing(np.vstack(points)))
 
 
 def scalar_trail(viz: MeshcatVisualizer, name: str, points: np.ndarray, values: np.ndarray,
@@ -90,9 +99,15 @@ def frame_path(robot: Robot, Q: np.ndarray, frame: str) -> np.ndarray:
     return np.array([frame_placement(robot, q, frame).translation for q in np.atleast_2d(Q)])
 
 
-def write_html(viz: MeshcatVisualizer, path: str | Path) -> Path:
-    """Write the view as one self-contained HTML page."""
+def write_html(viz: MeshcatVisualizer, path: str | Path, camera: SideCamera | None = None) -> Path:
+    """Write the view as one self-contained HTML page. An offline view's page opens on ``camera``:
+    by default the camera already recorded in the view (:func:`animate` records one), else the
+    side camera framing the pose the view shows (:func:`~rcm_kin.visualization.camera.side_camera`'s).
+    (A live view's page is the meshcat server's, on meshcat's default camera.)"""
     path = Path(path)
+    window = viz.viewer.window
+    if isinstance(window, OfflineWindow) and (camera is not None or window.camera_target is None):
+        set_camera(viz, camera or framing(view_points(viz)))
     try:
         path.write_text(viz.viewer.static_html())
     except OSError as exc:
