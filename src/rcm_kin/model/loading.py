@@ -99,6 +99,7 @@ def completed(description: RobotDescription, facts: UrdfFacts, tree: pin.Model) 
     mimic = {r.joint for r in facts.mimic}
     actuated = description.actuated or tuple(
         n for n in tree.names[1:] if n not in mimic and n not in {p.joint for p in description.passive})
+    passive = merge_passive(facts.mimic, description.passive, actuated, where)
     if not actuated:
         raise RcmKinError(f"{where}: the URDF has no joint to actuate (every joint is fixed or a mimic)")
     robot = description.robot or facts.name
@@ -108,7 +109,7 @@ def completed(description: RobotDescription, facts: UrdfFacts, tree: pin.Model) 
         raise RcmKinError(f"{where}: [rcm] 'joints' must name two actuated joints, got {list(description.rcm.joints)}")
     return dataclasses.replace(
         description, robot=robot, actuated=actuated, frames=description.frames or facts.leaf_links,
-        passive=merge_passive(facts.mimic, description.passive, actuated, where))
+        passive=passive)
 
 
 def build_robot(description: RobotDescription, counterweights: bool = True, urdf_text: str | None = None) -> Robot:
