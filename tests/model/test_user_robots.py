@@ -6,6 +6,7 @@ kinematics, plain Pinocchio calls on the same URDF, finite differences of the po
 
 from __future__ import annotations
 
+import json
 import re
 import tomllib
 import warnings
@@ -312,12 +313,17 @@ def test_renamed_remassed_psm_runs_on_its_own_masses(tmp_path):
         assert np.max(np.abs(tau - gravity_torque(psm, q))) > 1e-3       # its own physics, not the PSM's
 
 
-def test_tilted_base_gravity_is_pinocchio_with_gravity_set_by_hand(tmp_path):
+def test_tilted_base_gravity_is_pinocchio_with_gravity_set_by_hand(tmp_path, capsys):
     rpy = np.array([0.3, -0.2, 0.5])
-    robot = load_robot(_psm_copy(tmp_path, "tilted", extra=f"[base]\nrpy = {rpy.tolist()}\n"))
+    sidecar = _psm_copy(tmp_path, "tilted", extra=f"[base]\nrpy = {rpy.tolist()}\n")
+    robot = load_robot(sidecar)
     R = pin.rpy.rpyToMatrix(*rpy)                            # base orientation in the world
     g_base = R.T @ np.array([0.0, 0.0, -9.81])
     np.testing.assert_allclose(robot.gravity, g_base, atol=1e-15)
+    np.testing.assert_allclose(robot.description.base_rpy, rpy)
+    capsys.readouterr()
+    assert main(["info", str(sidecar), "--json"]) == 0
+    np.testing.assert_allclose(json.loads(capsys.readouterr().out)["gravity"], g_base, atol=1e-15)
     model = pin.Model(load_robot("psm").reduced)
     model.gravity.linear = g_base
     data = model.createData()
