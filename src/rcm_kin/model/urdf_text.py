@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import threading
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -105,13 +106,21 @@ def read_urdf(text: str, where: str) -> UrdfFacts:
         leaf_links=tuple(name for name in links if name not in parents))
 
 
+_STDERR_LOCK = threading.Lock()   # file descriptor 2 is the process's: one capture at a time
+
+
 class _CapturedStderr:
     """Collects what C++ code writes on file descriptor 2 (urdfdom's parse messages) meanwhile."""
 
     def __enter__(self):
-        self.file = tempfile.TemporaryFile(mode="w+b")
-        self.saved = os.dup(2)
-        os.dup2(self.file.fileno(), 2)
+        _STDERR_LOCK.acquire()
+        try:
+            self.file = tempfile.TemporaryFile(mode="w+b")
+            self.saved = os.dup(2)
+            os.dup2(self.file.fileno(), 2)
+        except OSError:
+            _STDERR_LOCK.release()
+            raise
         return self
 
     def __exit__(self, *exc):
@@ -120,6 +129,7 @@ class _CapturedStderr:
         self.file.seek(0)
         self.text = self.file.read().decode(errors="replace")
         self.file.close()
+        _STDERR_LOCK.release()
         return False
 
 
