@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from rcm_kin.cli.common import RAW, add_json, any_robot, emit, floats, joint_values
-from rcm_kin.model import GRAVITY, joint_table, load_robot
+from rcm_kin.model import joint_table, load_robot
 
 EPILOG_FK = "example: rcm-kin fk psm 10 -5 0.08 --deg --json   (roll 10 deg, pitch -5 deg, insertion 0.08 m)"
 EPILOG_IK = ("examples: rcm-kin ik psm 0.01 0.02 -0.06 --json   (shaft tip at x y z in m, base frame)\n"
@@ -53,10 +53,10 @@ def cmd_info(args) -> None:
     joints = [{"name": j.name, "type": j.kind, "lower": j.lower, "upper": j.upper,
                "axis_world": j.axis.round(12).tolist(), "role": j.role} for j in joint_table(robot)]
     payload = {"robot": robot.name, "joints": joints, "actuated": list(robot.actuated),
-               "gravity": GRAVITY.tolist(), "frames": list(robot.description.frames),
+               "gravity": robot.gravity.tolist(), "frames": list(robot.description.frames),
                "loops": [c.loop.name for c in robot.constraints]}
     lines = [f"{robot.name}: {len(robot.actuated)} actuated joints, {len(robot.constraints)} loop closures, "
-             f"gravity {GRAVITY.tolist()} m/s^2 (base frame)",
+             f"gravity {robot.gravity.tolist()} m/s^2 (base frame)",
              f"{'joint':18} {'type':9} {'role':8} {'lower':>9} {'upper':>9}  axis (base frame, q = 0)"]
     for j in joints:
         scale, unit = (1e3, "mm") if j["type"] == "prismatic" else (180 / np.pi, "deg")

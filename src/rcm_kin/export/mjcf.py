@@ -86,7 +86,8 @@ def keyframes(robot: Robot) -> list[Keyframe]:
                 q = home.copy()
                 q[robot.actuated.index("roll")], q[robot.actuated.index("pitch")] = np.radians([roll, pitch])
                 poses[f"roll{roll}_pitch{pitch}"] = q
-    return [Keyframe(name, q, _closed(robot, q), gravity_torque(robot, q)) for name, q in poses.items()]
+    return [Keyframe(name, q, _closed(robot, q), gravity_torque(robot, q, allow_massless=True))
+            for name, q in poses.items()]
 
 
 def _link_bodies(tree: pin.Model) -> dict[int, str]:

@@ -6,12 +6,14 @@ and docs/models.md document the format. Lengths are in metres and angles in radi
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from rcm_kin.errors import RcmKinError, read_toml
+
+GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2: gravity in the world (z up), and in an untilted base frame
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,10 @@ class RcmDescription:
 
 @dataclass(frozen=True)
 class RobotDescription:
+    """A robot as its sidecar (or, for a URDF alone, the defaults) describes it. Empty ``robot``,
+    ``actuated`` or ``frames`` mean the URDF's defaults, filled in by the loader: its robot name,
+    every non-fixed, non-mimic joint in depth-first order, its leaf links."""
+
     robot: str
     urdf: Path
     actuated: tuple[str, ...]
@@ -62,6 +68,40 @@ class RobotDescription:
     counterweights: tuple[str, ...] = ()   # links whose mass is a counterweight (removable)
     rcm: RcmDescription | None = None
     drive: Path | None = None   # the robot's drive parameter file (its calibration); None: CAD, torque only
+    base_rpy: np.ndarray | None = None     # [base] rpy: the base's orientation in the world (rad, URDF rpy)
+    gravity: np.ndarray = field(default_factory=GRAVITY.copy)   # m/s^2 in the base frame
+
+
+def _base_gravity(raw: dict, where: str) -> tuple[np.ndarray | None, np.ndarray]:
+    """``[base]``: ``rpy`` (the base's orientation in the world, where gravity is -z 9.81 m/s^2)
+    or ``gravity`` (m/s^2 in the base frame), not both; -> (rpy or None, gravity in the base frame)."""
+    entry = raw.get("base", {})
+    at = f"{where}: [base]"
+    if not isinstance(entry, dict):
+        raise RcmKinError(f"{at} must be a table (rpy = [r, p, y] or gravity = [gx, gy, gz])")
+    if unknown := set(entry) - {"rpy", "gravity"}:
+        raise RcmKinError(f"{at}: unknown keys {sorted(unknown)} (rpy or gravity)")
+    if "rpy" in entry and "gravity" in entry:
+        raise RcmKinError(f"{at}: give 'rpy' or 'gravity', not both")
+    if "gravity" in entry:
+        g = _vector3(entry, "gravity", at)
+        if not np.all(np.isfinite(g)):
+            raise RcmKinError(f"{at}: 'gravity' must be finite")
+        return None, g
+    if "rpy" in entry:
+        rpy = _vector3(entry, "rpy", at)
+        if not np.all(np.isfinite(rpy)):
+            raise RcmKinError(f"{at}: 'rpy' must be finite")
+        return rpy, _rpy_matrix(rpy).T @ GRAVITY
+    return None, GRAVITY.copy()
+
+
+def _rpy_matrix(rpy: np.ndarray) -> np.ndarray:
+    """URDF roll-pitch-yaw: Rz(yaw) Ry(pitch) Rx(roll)."""
+    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
 
 
 def _vector3(entry: dict, key: str, where: str) -> np.ndarray:
@@ -93,9 +133,14 @@ def read_description(path: str | Path, text: str | None = None) -> RobotDescript
     urdf = path.parent / _text(raw, "urdf", where)
     if not urdf.exists():
         raise RcmKinError(f"{where}: URDF file {urdf} does not exist")
-    actuated = raw.get("actuated")
-    if not actuated or not all(isinstance(n, str) for n in actuated):
-        raise RcmKinError(f"{where}: 'actuated' must be a non-empty list of joint names")
+    actuated = raw.get("actuated", ())
+    if not isinstance(actuated, (list, tuple)) or not all(isinstance(n, str) and n for n in actuated):
+        raise RcmKinError(f"{where}: 'actuated' must be a list of joint names (leave it out for every joint)")
+    if "actuated" in raw and not actuated:
+        raise RcmKinError(f"{where}: 'actuated' must not be empty (leave it out for every joint)")
+    frames = raw.get("frames", ())
+    if not isinstance(frames, (list, tuple)) or not all(isinstance(n, str) and n for n in frames):
+        raise RcmKinError(f"{where}: 'frames' must be a list of link names")
     loops = []
     for i, entry in enumerate(raw.get("loop", [])):
         at = f"{where}: loop {i + 1}"
@@ -124,7 +169,8 @@ def read_description(path: str | Path, text: str | None = None) -> RobotDescript
     if "rcm" in raw:
         entry, at = raw["rcm"], f"{where}: [rcm]"
         joints = entry.get("joints") if isinstance(entry, dict) else None
-        if not (isinstance(joints, list) and len(joints) == 2 and all(j in actuated for j in joints)):
+        if not (isinstance(joints, list) and len(joints) == 2 and all(isinstance(j, str) for j in joints)
+                and (not actuated or all(j in actuated for j in joints))):
             raise RcmKinError(f"{at}: 'joints' must name two actuated joints")
         rcm = RcmDescription(_text(entry, "shaft_frame", at), tuple(joints), entry.get("base_frame"))
     drive = None
@@ -132,7 +178,15 @@ def read_description(path: str | Path, text: str | None = None) -> RobotDescript
         drive = path.parent / _text(raw, "drive", where)
         if not drive.is_file():
             raise RcmKinError(f"{where}: drive parameter file {drive} does not exist")
+    robot = _text(raw, "robot", where) if "robot" in raw else ""
+    base_rpy, gravity = _base_gravity(raw, where)
     return RobotDescription(
-        robot=_text(raw, "robot", where), urdf=urdf, drive=drive, actuated=tuple(actuated),
-        frames=tuple(raw.get("frames", ())), loops=tuple(loops), passive=tuple(passive),
-        counterweights=tuple(raw.get("counterweights", ())), rcm=rcm)
+        robot=robot, urdf=urdf, drive=drive, actuated=tuple(actuated),
+        frames=tuple(frames), loops=tuple(loops), passive=tuple(passive),
+        counterweights=tuple(raw.get("counterweights", ())), rcm=rcm, base_rpy=base_rpy, gravity=gravity)
+
+
+def urdf_alone(urdf: str | Path) -> RobotDescription:
+    """The description of a URDF without a sidecar: every default (see :class:`RobotDescription`),
+    no loops, no RCM, no drive, an untilted base."""
+    return RobotDescription(robot="", urdf=Path(urdf), actuated=(), frames=(), loops=(), passive=())

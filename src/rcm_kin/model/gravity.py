@@ -8,6 +8,9 @@ force (N) each actuated joint must supply to hold the pose. Three ways to the sa
 - :func:`gravity_batch`: a NumPy evaluation over ``(N, nq)`` poses at once, from the open tree's
   joint placements, axes and inertias and the sidecar's linear loop relations. It is what the
   torque maps use; the tests hold it to Pinocchio at 1e-12.
+
+Both refuse a robot without inertial data and warn when some links have none
+(:func:`rcm_kin.model.masses.require_masses`), unless ``allow_massless`` says the caller knows.
 """
 
 from __future__ import annotations
@@ -20,17 +23,23 @@ from tqdm import tqdm
 
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model import constrained
+from rcm_kin.model.masses import require_masses
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.model.robot import Robot, RobotData
 from rcm_kin.symbolic.tree import joint_axis
 
 
-def gravity_torque(robot: Robot, q, method: str = "reduced", data: RobotData | None = None) -> np.ndarray:
+def gravity_torque(robot: Robot, q, method: str = "reduced", data: RobotData | None = None, *,
+                   allow_massless: bool = False) -> np.ndarray:
     """Holding torques of the actuated joints at actuated ``q`` (N m, N), actuated order.
 
     ``method``: ``"reduced"`` (mimic model) or ``"constrained"`` (loop solve + projection);
-    ``data``: the caller's workspace (:meth:`Robot.create_data`), default this thread's own.
+    ``data``: the caller's workspace (:meth:`Robot.create_data`), default this thread's own;
+    ``allow_massless``: take links without ``<inertial>`` as massless without a word (else a
+    robot without any masses is refused, one with some missing warned about once).
     """
+    if robot.massless_links and not allow_massless:
+        require_masses(robot, "gravity")
     q = robot.check_q(q)
     data = robot.workspace(data)
     if method == "reduced":
@@ -147,12 +156,15 @@ def _poses(robot: Robot, Q) -> np.ndarray:
 
 
 def gravity_batch(robot: Robot, Q, offsets: dict | None = None, chunk: int = 8192,
-                  progress: bool = False) -> np.ndarray:
+                  progress: bool = False, *, allow_massless: bool = False) -> np.ndarray:
     """Holding torques (N, nq) at (N, nq) actuated poses (N m, N), vectorised over poses in
     chunks of ``chunk`` poses (cache-sized); ``progress`` shows a bar over the chunks.
 
     ``offsets``: extra first moments {link: (3,) kg m in the link's frame}, e.g. the calibrated
-    ``DriveParameters.gravity_offsets``; they add torque but no mass."""
+    ``DriveParameters.gravity_offsets``; they add torque but no mass. ``allow_massless`` as in
+    :func:`gravity_torque`."""
+    if robot.massless_links and not allow_massless:
+        require_masses(robot, "gravity")
     Q = _poses(robot, Q)
     moments = offset_moments(robot, offsets or {})
     starts = range(0, len(Q), chunk)

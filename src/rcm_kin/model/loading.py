@@ -1,11 +1,15 @@
-"""Load a robot description (URDF + sidecar) into its open-tree, constrained and reduced models.
+"""Load a robot description (URDF + sidecar, or a URDF alone) into its open-tree, constrained and
+reduced models.
 
 :func:`load_robot` caches by the *content* of the description's files (sidecar and URDF): a file
-edited on disk is reloaded at the next call, an unchanged one is built once.
+edited on disk is reloaded at the next call, an unchanged one is built once. The URDF's
+``<mimic>`` tags become passive relations and its ``continuous`` joints revolute ones limited to
+[-pi, pi] (:mod:`rcm_kin.model.urdf_text`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import os
@@ -18,11 +22,12 @@ import pinocchio as pin
 
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model.constrained import build_constraint_models, closure_residual
-from rcm_kin.model.description import RobotDescription, read_description
+from rcm_kin.model.description import GRAVITY, RobotDescription, read_description, urdf_alone
 from rcm_kin.model.reduced import build_reduced_model, tree_configuration
 from rcm_kin.model.robot import Robot
+from rcm_kin.model.urdf_text import UrdfFacts, build_tree, massless_links, merge_passive, read_urdf
 
-GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, base frame (z up) of every bundled robot
+__all__ = ["GRAVITY", "build_robot", "load_robot", "robot_names", "urdf_dir"]
 
 
 @functools.cache
@@ -86,6 +91,27 @@ def _text(data: bytes, path: Path) -> str:
         raise RcmKinError(f"{path}: not UTF-8 text ({exc})") from None
 
 
+def completed(description: RobotDescription, facts: UrdfFacts, tree: pin.Model) -> RobotDescription:
+    """``description`` with the URDF's defaults filled in (robot name, actuated joints in
+    Pinocchio's depth-first order, leaf links as frames) and its ``<mimic>`` tags merged into the
+    passive relations."""
+    where = str(description.urdf)
+    mimic = {r.joint for r in facts.mimic}
+    actuated = description.actuated or tuple(
+        n for n in tree.names[1:] if n not in mimic and n not in {p.joint for p in description.passive})
+    passive = merge_passive(facts.mimic, description.passive, actuated, where)
+    if not actuated:
+        raise RcmKinError(f"{where}: the URDF has no joint to actuate (every joint is fixed or a mimic)")
+    robot = description.robot or facts.name
+    if not robot:
+        raise RcmKinError(f"{where}: the URDF's <robot> has no name; give one in a sidecar (robot = ...)")
+    if description.rcm is not None and not all(j in actuated for j in description.rcm.joints):
+        raise RcmKinError(f"{where}: [rcm] 'joints' must name two actuated joints, got {list(description.rcm.joints)}")
+    return dataclasses.replace(
+        description, robot=robot, actuated=actuated, frames=description.frames or facts.leaf_links,
+        passive=passive)
+
+
 def build_robot(description: RobotDescription, counterweights: bool = True, urdf_text: str | None = None) -> Robot:
     """Build and check the open-tree, constrained and reduced models of one description (the URDF
     from ``urdf_text`` when given, else read from ``description.urdf``).
@@ -94,18 +120,16 @@ def build_robot(description: RobotDescription, counterweights: bool = True, urdf
     where = str(description.urdf)
     if urdf_text is None:
         urdf_text = _text(_read_bytes(description.urdf, "URDF"), description.urdf)
-    if not counterweights:
-        urdf_text = _urdf_without(description, description.counterweights, urdf_text)
-    tree = pin.buildModelFromXML(urdf_text)
-    tree.gravity.linear = GRAVITY
+    facts = read_urdf(urdf_text, where)
+    text = facts.text if counterweights else _urdf_without(description, description.counterweights, facts.text)
+    tree = build_tree(facts, where, text)
+    tree.gravity.linear = np.asarray(description.gravity, dtype=float)
     if not tree.check(tree.createData()):
         raise RcmKinError(f"{where}: Pinocchio's model check failed")
+    description = completed(description, facts, tree)
 
     actuated = [_joint_q_index(tree, n, where) for n in description.actuated]
     passive = [_joint_q_index(tree, p.joint, where) for p in description.passive]
-    for p in description.passive:
-        if p.follows not in description.actuated:
-            raise RcmKinError(f"{where}: passive joint '{p.joint}' follows '{p.follows}', which is not actuated")
     unassigned = set(tree.names[1:]) - set(description.actuated) - {p.joint for p in description.passive}
     if unassigned:
         raise RcmKinError(f"{where}: joints {sorted(unassigned)} are neither actuated nor passive")
@@ -125,7 +149,8 @@ def build_robot(description: RobotDescription, counterweights: bool = True, urdf
         constraints=build_constraint_models(tree, description.loops),
         tree_q_actuated=tree_q, tree_q_passive=np.array(passive, dtype=int),
         reduced_q_actuated=np.array(reduced_actuated, dtype=int),
-        lower=tree.lowerPositionLimit[tree_q].copy(), upper=tree.upperPositionLimit[tree_q].copy())
+        lower=tree.lowerPositionLimit[tree_q].copy(), upper=tree.upperPositionLimit[tree_q].copy(),
+        massless_links=massless_links(tree, facts.inertial_links))
     _check_passive_relations(robot)
     return robot
 
@@ -149,14 +174,15 @@ _CACHE_SIZE = 32
 
 def _sidecar_path(name: str) -> Path:
     if not isinstance(name, (str, Path)):
-        raise RcmKinError(f"a robot is named by a string ({', '.join(robot_names())}) or a .toml path, "
+        raise RcmKinError(f"a robot is named by a string ({', '.join(robot_names())}), a .toml or a .urdf path, "
                           f"got {type(name).__name__}")
     name = str(name)
-    if name.endswith(".toml"):
+    if name.endswith((".toml", ".urdf")):
         return Path(name)
     if name in _bundled_names():
         return urdf_dir() / f"{name}.toml"
-    raise RcmKinError(f"unknown robot '{name}'; choose one of: {', '.join(robot_names())}")
+    raise RcmKinError(f"unknown robot '{name}'; choose one of: {', '.join(robot_names())}, "
+                      f"or give the path of a sidecar .toml or a .urdf")
 
 
 def _bounded_put(cache: dict, key, value):
@@ -183,14 +209,20 @@ def _description(path: Path) -> tuple[RobotDescription, str]:
 
 
 def load_robot(name: str | Path, counterweights: bool = True) -> Robot:
-    """A bundled robot by name (see :func:`robot_names`) or any sidecar ``.toml`` by path; with
+    """A bundled robot by name (see :func:`robot_names`), any sidecar ``.toml`` by path, or a
+    ``.urdf`` alone (every default: see :class:`~rcm_kin.model.description.RobotDescription`); with
     ``counterweights=False`` the counterweight links carry no mass.
 
     The result is cached by the content of the sidecar and its URDF, so a call after either file
     changed builds the new model; the cached robot holds no shared scratch data
     (:meth:`Robot.create_data`)."""
     path = _sidecar_path(name)
-    description, sidecar = _description(path)
+    if path.suffix == ".urdf":
+        if not path.is_file():
+            raise RcmKinError(f"no URDF at {path}")
+        description, sidecar = urdf_alone(path), "urdf alone"
+    else:
+        description, sidecar = _description(path)
     urdf = _read_bytes(description.urdf, "URDF")           # read once: its digest and its model
     key = (bool(counterweights), sidecar, str(description.urdf), hashlib.sha256(urdf).hexdigest())
     robot = _CACHE.get(key)

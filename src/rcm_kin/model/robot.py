@@ -60,6 +60,7 @@ class Robot:
     reduced_q_actuated: np.ndarray  # index in the reduced q of each actuated joint
     lower: np.ndarray               # actuated joint limits (rad or m)
     upper: np.ndarray
+    massless_links: tuple[str, ...] = ()   # moving links whose rigid body has no <inertial> in the URDF
     _threads: threading.local = field(default_factory=threading.local, init=False, repr=False)  # per thread: RobotData
 
     def create_data(self) -> RobotData:
@@ -97,6 +98,11 @@ class Robot:
     def reduced_data(self) -> pin.Data:
         """The calling thread's workspace of the reduced model."""
         return self.scratch.reduced
+
+    @property
+    def gravity(self) -> np.ndarray:
+        """Gravity in the base frame (m/s^2): -z 9.81 unless the sidecar's ``[base]`` tilts it."""
+        return np.array(self.tree.gravity.linear)
 
     @property
     def actuated(self) -> tuple[str, ...]:
