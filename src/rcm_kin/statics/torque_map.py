@@ -30,6 +30,7 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.loading import build_robot
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
+from rcm_kin.plotting import torque_heatmaps
 from rcm_kin.statics.maps import HoldingEffort, check_map_size, require_masses, resolve_drive
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
 from rcm_kin.symbolic.compiled import compiled, map_points
@@ -65,6 +66,8 @@ class TorqueMap:
     effort: DriveEffort | None          # arrays (A, B, len(driven))
     model: str                          # which model: "CAD (URDF inertias)" or "calibration <file>"
     driven: tuple[str, ...] = ()
+    tau_units: tuple[str, ...] = ()     # per actuated joint: "N m" (revolute) or "N" (prismatic)
+    params: DriveParameters | None = None   # the drive used (None: CAD, torque only)
 
     @property
     def dims(self) -> tuple[str, str, str]:
@@ -216,7 +219,8 @@ def torque_map(robot: Robot, grid: dict, q=None, drive=None, counterweights: boo
         driven = tau[..., [robot.actuated.index(j) for j in params.driven]]
         effort = drive_effort_blocks(params, driven)
     return TorqueMap(robot.name, names, values, tuple(unit_of(robot, n) for n in names), q, robot.actuated, tau,
-                     effort, model_label(params), () if params is None else params.driven)
+                     effort, model_label(params), () if params is None else params.driven,
+                     tuple("N" if unit_of(robot, j) == "m" else "N m" for j in robot.actuated), params)
 
 
 def map_gravity(robot: Robot, offsets: dict, q: np.ndarray, index: tuple[int, int], values, progress: bool = False,
@@ -272,3 +276,14 @@ def drive_effort_blocks(params: DriveParameters, tau: np.ndarray, block: int = B
         for name, values in out.items():
             values[i:i + block] = getattr(part, name)
     return DriveEffort(tau, **{name: values.reshape(tau.shape) for name, values in out.items()})
+
+
+def write_torque_map(tmap: TorqueMap, out: Path, table: str = "csv", figures: bool = True) -> list[Path]:
+    """The map's table ``torque_map.<table>`` (``csv`` or ``npz``) and, with ``figures``, its heat
+    maps ``torque_map.png`` (:func:`rcm_kin.plotting.torque_heatmaps`) in folder ``out``."""
+    if table not in ("csv", "npz"):
+        raise RcmKinError(f"table format '{table}': use one of csv, npz")
+    files = [tmap.write(Path(out) / f"torque_map.{table}")]
+    if figures:
+        files.append(torque_heatmaps(tmap, Path(out) / "torque_map.png"))
+    return files
