@@ -337,7 +337,7 @@ def barrier_figure(runs: dict, path: str | Path) -> Path:
 
 def torque_heatmaps(tmap, path: str | Path, drive=None, most: int = 6, image_samples: int = IMAGE_SAMPLES,
                     contour_samples: int = CONTOUR_SAMPLES) -> Path:
-    """Holding-torque heat maps of a :class:`~rcm_kin.statics.torque_map.TorqueMap` (any robot, any two
+    """Holding-torque heat maps of a :class:`~rcm_kin.statics.holding.TorqueMap` (any robot, any two
     joints): one panel per actuated joint that carries a load over the grid (at most ``most``, in
     the robot's order), ``joint_a`` up, ``joint_b`` across (degrees for revolute joints, m for
     prismatic). With a drive (``drive``, default the map's ``params``) a driven joint's colour bar has a second

@@ -7,7 +7,7 @@ import numpy as np
 
 from rcm_kin import load_robot
 from rcm_kin import plotting as figures
-from rcm_kin.statics.torque_map import torque_map
+from rcm_kin.statics.holding import torque_map
 
 
 def drawn(monkeypatch, tmap):

@@ -13,8 +13,8 @@ import pytest
 import rcm_kin as rk
 from rcm_kin.dynamics.drive import DEFAULT_PARAMETERS
 from rcm_kin.model.loading import urdf_dir
+from rcm_kin.statics.holding import default_pose, torque_map
 from rcm_kin.statics.maps import gravity_map, holding_effort
-from rcm_kin.statics.torque_map import default_pose, torque_map
 
 UR5_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
               "wrist_3_joint")

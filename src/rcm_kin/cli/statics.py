@@ -138,8 +138,8 @@ def psm_torque_map(args) -> None:
 
 
 def grid_torque_map(args) -> None:
+    from rcm_kin.statics.holding import check_actuated, default_pose, torque_map, write_torque_map
     from rcm_kin.statics.maps import check_map_size, parse_range, resolve_drive
-    from rcm_kin.statics.torque_map import check_actuated, default_pose, torque_map, write_torque_map
 
     if any(x is not None for x in (args.roll, args.pitch, args.insertion)):
         raise RcmKinError("--grid replaces --roll/--pitch/--insertion: give the joints' values with --grid and --at")

@@ -12,7 +12,7 @@ __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,
     submod_attrs={
         "maps": ["GravityMap", "HoldingEffort", "gravity_map", "holding_effort", "write_gravity_maps"],
-        "torque_map": ["TorqueMap", "torque_map", "write_torque_map"],
+        "holding": ["TorqueMap", "torque_map", "write_torque_map"],
         "counterweights": ["CounterweightDesign", "CounterweightPlacement", "design_counterweights",
                            "place_counterweight"],
     },
