@@ -333,3 +333,45 @@ def barrier_figure(runs: dict, path: str | Path) -> Path:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     return save_figure(fig, path)
+
+
+def torque_heatmaps(tmap, path: str | Path, drive=None, most: int = 6, image_samples: int = IMAGE_SAMPLES,
+                    contour_samples: int = CONTOUR_SAMPLES) -> Path:
+    """Holding-torque heat maps of a :class:`~rcm_kin.statics.holding.TorqueMap` (any robot, any two
+    joints): one panel per actuated joint that carries a load over the grid (at most ``most``, in
+    the robot's order), ``joint_a`` up, ``joint_b`` across (degrees for revolute joints, m for
+    prismatic). With a drive (``drive``, default the map's ``params``) a driven joint's colour bar has a second
+    scale in PWM counts (hardware sign). Large grids are drawn from samples as :func:`effort_heatmaps`."""
+    plt = pyplot()
+    drive = tmap.params if drive is None else drive
+    scale = float(np.abs(tmap.tau).max()) if tmap.tau.size else 0.0
+    loaded = [k for k in range(len(tmap.actuated)) if np.abs(tmap.tau[..., k]).max() > 1e-9 + 1e-6 * scale]
+    shown = (loaded or [0])[:most]
+    cols = min(3, len(shown))
+    rows_n = -(-len(shown) // cols)
+    fig, axes = plt.subplots(rows_n, cols, figsize=(5.2 * cols, 4.3 * rows_n), layout="constrained", squeeze=False)
+    axis = [np.degrees(v) if u == "rad" else v for v, u in zip(tmap.values, tmap.units)]
+    label = [f"{j} ({'deg' if u == 'rad' else 'm'})" for j, u in zip(tmap.joints, tmap.units)]
+    extent = [*_span(axis[1]), *_span(axis[0])]
+    rows, cols_i = (spread_samples(v.size, contour_samples) for v in axis)
+    pixels = tuple(slice(None, None, image_stride(v.size, image_samples)) for v in axis)
+    for ax, k in zip(axes.ravel(), shown):
+        joint, data = tmap.actuated[k], tmap.tau[..., k]
+        limit = max(float(np.abs(data).max()), 1e-12)
+        im = ax.imshow(data[pixels], origin="lower", extent=extent, aspect="auto", cmap="coolwarm",
+                       vmin=-limit, vmax=limit)
+        if min(data.shape) >= 2:
+            ax.contour(axis[1][cols_i], axis[0][rows], data[np.ix_(rows, cols_i)], colors="k", linewidths=0.5,
+                       levels=contour_levels(data, 9))
+        ax.set(xlabel=label[1], ylabel=label[0], title=f"{joint} holding torque")
+        unit = tmap.tau_units[k]
+        bar = fig.colorbar(im, ax=ax, label=f"{'force' if unit == 'N' else 'torque'} ({unit})")
+        if drive is not None and joint in tmap.driven:
+            gain = drive[joint].pwm_per_torque
+            bar.ax.secondary_yaxis("left", functions=(lambda t, c=gain: t * c, lambda p, c=gain: p / c)).set_ylabel(
+                "PWM (counts, hardware sign)")
+    for ax in axes.ravel()[len(shown):]:
+        ax.set_visible(False)
+    fig.suptitle(f"{tmap.robot}: holding torque over {tmap.joints[0]} x {tmap.joints[1]} ({tmap.model})")
+    return save_figure(fig, path)
+

@@ -12,24 +12,27 @@ from rcm_kin.cli.common import (
     any_robot,
     emit,
     finite,
+    floats,
     joint_values,
     new_output,
     path_text,
     progress_wanted,
-    psm_robot,
     require_psm,
 )
 from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.model import load_robot
 
+PSM_GRID_DEFAULT = "-30:30:61"
 EPILOG_TORQUE_MAP = ("example: rcm-kin torque-map psm --roll=-30:30:61 --pitch=-30:30:61 --insertion 0.08 --out maps\n"
+                     "any robot: rcm-kin torque-map mtm --grid j2=-40:60:51 j3=-30:80:56 --at j1=10 --out maps\n"
                      "large: rcm-kin torque-map psm --roll=-30:30:1001 --pitch=-30:30:1001 --format npz --out maps\n"
                      "(write negative ranges with =, as argparse reads a leading - as an option)")
 
 
 def add_gravity(sub) -> None:
-    p = sub.add_parser("gravity", help="holding torque (and PSM motor voltage/PWM) at a pose", parents=[any_robot()],
+    p = sub.add_parser("gravity", help="holding torque (and motor voltage/PWM where a drive is described) at a pose",
+                       parents=[any_robot()],
                        epilog="example: rcm-kin gravity psm 10 -15 0.08 --deg --json   "
                               "(roll, pitch in deg, insertion m)",
                        formatter_class=RAW)
@@ -37,19 +40,28 @@ def add_gravity(sub) -> None:
     p.add_argument("--deg", action="store_true", help="revolute values in degrees")
     p.add_argument("--no-counterweights", action="store_true", help="remove the counterweights' mass")
     add_params(p)
-    add_json(p, '{"joints", "tau" (N m, N), "pwm" (counts), "voltage" (V)} (PWM/V for roll, pitch, insertion)')
+    add_json(p, '{"joints", "tau" (N m, N), "pwm" (counts), "voltage" (V), "driven", "model"} (PWM/V of the '
+                'drive\'s joints, where the robot has a drive)')
     p.set_defaults(func=cmd_gravity)
 
 
 def add_torque_map(sub) -> None:
-    p = sub.add_parser("torque-map", help="holding torque/voltage/PWM over roll x pitch (CSV + PNG)",
-                       parents=[psm_robot()], epilog=EPILOG_TORQUE_MAP, formatter_class=RAW)
-    p.add_argument("--roll", default="-30:30:61",
-                   help="roll grid LO:HI:N in degrees, N >= 2 (or LO:LO:1, one value; default -30:30:61)")
-    p.add_argument("--pitch", default="-30:30:61",
-                   help="pitch grid LO:HI:N in degrees, N >= 2 (or LO:LO:1; default -30:30:61; at most "
+    p = sub.add_parser("torque-map", help="holding torque (and voltage/PWM where a drive is described) over two "
+                                          "joints (CSV + PNG)",
+                       parents=[any_robot()], epilog=EPILOG_TORQUE_MAP, formatter_class=RAW)
+    p.add_argument("--grid", nargs="+", metavar="J=LO:HI:N",
+                   help="any robot: the two actuated joints of the map and their grids, LO:HI:N in degrees for "
+                        "revolute joints, metres for prismatic (e.g. j2=-40:60:51 j3=-30:80:56); the other joints "
+                        "at zero (inside their limits) or --at")
+    p.add_argument("--at", nargs="+", metavar="J=VALUE",
+                   help="with --grid: values of other actuated joints (degrees for revolute, metres for prismatic)")
+    p.add_argument("--roll", default=None,
+                   help="the bundled PSM's form: roll grid LO:HI:N in degrees, N >= 2 (or LO:LO:1, one value; "
+                        f"default {PSM_GRID_DEFAULT})")
+    p.add_argument("--pitch", default=None,
+                   help=f"pitch grid LO:HI:N in degrees, N >= 2 (or LO:LO:1; default {PSM_GRID_DEFAULT}; at most "
                         "1001 x 1001 poses in all)")
-    p.add_argument("--insertion", type=finite(unit="m"), default=HOME_INSERTION,
+    p.add_argument("--insertion", type=finite(unit="m"), default=None,
                    help=f"insertion in m (default {HOME_INSERTION:g})")
     p.add_argument("--no-counterweights", action="store_true", help="remove the counterweights' mass")
     add_params(p)
@@ -57,8 +69,8 @@ def add_torque_map(sub) -> None:
     p.add_argument("--format", choices=("csv", "npz"), default="csv",
                    help="tables as csv (text, 9 decimals; default) or npz (NumPy, full precision, one array per "
                         "CSV column: np.load; fastest for large maps)")
-    p.add_argument("--no-figures", action="store_true", help="write the tables only, not the three PNG figures")
-    add_json(p, '{"files": [...], "poses": N}')
+    p.add_argument("--no-figures", action="store_true", help="write the tables only, not the PNG figures")
+    add_json(p, '{"files": [...], "poses": N} (--grid: also "joints", "model")')
     p.set_defaults(func=cmd_torque_map)
 
 
@@ -74,44 +86,102 @@ def add_calibrate(sub) -> None:
 
 
 def cmd_gravity(args) -> None:
-    from rcm_kin.dynamics.drive import DRIVEN
-    from rcm_kin.statics.maps import holding_effort
+    from rcm_kin.statics.maps import holding_effort, resolve_drive
 
     robot = load_robot(args.robot, counterweights=not args.no_counterweights)
-    if args.params is not None and robot.name != "psm":
-        raise RcmKinError(f"--params sets the PSM's drives; the {robot.name} has none")
+    drive = resolve_drive(robot, args.params)        # --params of another robot: one line, before any number
     q = joint_values(robot, args)
-    effort = holding_effort(robot, q, args.params)
+    effort = holding_effort(robot, q, drive)
     payload = {"joints": list(robot.actuated), "q": q.tolist(), "tau": effort.tau.tolist()}
     if effort.drive is not None:
-        payload.update(pwm=effort.drive.pwm.tolist(), voltage=effort.drive.voltage.tolist(), driven=list(DRIVEN),
+        payload.update(pwm=effort.drive.pwm.tolist(), voltage=effort.drive.voltage.tolist(), driven=list(effort.driven),
                        saturated=effort.drive.saturated.tolist())
     else:
         payload.update(pwm=[], voltage=[], driven=[])
+    payload["model"] = effort.model
     units = ["N" if robot.joint_kind(n) == "prismatic" else "N m" for n in robot.actuated]
     lines = [f"{n:16} {t:+10.4f} {u}" for n, t, u in zip(robot.actuated, payload["tau"], units)]
     if payload["pwm"]:
         lines.append("driven joints (hardware PWM sign: positive decreases the angle):")
         lines += [f"{n:16} {v:+8.3f} V  {p:+8.2f} PWM" + ("  SATURATED" if s else "")
-                  for n, v, p, s in zip(DRIVEN, payload["voltage"], payload["pwm"], payload["saturated"])]
+                  for n, v, p, s in zip(effort.driven, payload["voltage"], payload["pwm"], payload["saturated"])]
+    lines.append(f"model: {effort.model}")
     emit(args, payload, "\n".join(lines))
 
 
 def cmd_torque_map(args) -> None:
+    if args.grid is not None:
+        return grid_torque_map(args)
+    if args.at is not None:
+        raise RcmKinError("--at sets the other joints of a --grid map: give --grid J=LO:HI:N J=LO:HI:N")
+    return psm_torque_map(args)
+
+
+def psm_torque_map(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.statics.maps import check_map_size, parse_range, write_gravity_maps
 
-    require_psm(args, "torque maps are for the PSM's driven joints: rcm-kin torque-map psm ...")
+    require_psm(args, "the --roll/--pitch/--insertion form is the bundled PSM's: for {robot} give the grid, e.g. "
+                      "rcm-kin torque-map {robot} --grid J=LO:HI:N J=LO:HI:N --out DIR")
     robot = load_robot("psm", counterweights=not args.no_counterweights)
     drive = load_drive_parameters(args.params)
-    roll, pitch = (np.linspace(*parse_range(t, w)) for t, w in ((args.roll, "--roll"), (args.pitch, "--pitch")))
+    roll_text, pitch_text = (t if t is not None else PSM_GRID_DEFAULT for t in (args.roll, args.pitch))
+    insertion = HOME_INSERTION if args.insertion is None else args.insertion
+    roll, pitch = (np.linspace(*parse_range(t, w)) for t, w in ((roll_text, "--roll"), (pitch_text, "--pitch")))
     check_map_size(roll.size * pitch.size)           # size and limits before the output folder is made
     for corner in ((roll[0], pitch[0]), (roll[-1], pitch[-1])):
-        robot.check_limits(robot.check_q([*np.radians(corner), args.insertion], allow_short=True))
-    gmap, files = write_gravity_maps(robot, drive, roll, pitch, args.insertion, output_folder(args.out),
+        robot.check_limits(robot.check_q([*np.radians(corner), insertion], allow_short=True))
+    gmap, files = write_gravity_maps(robot, drive, roll, pitch, insertion, output_folder(args.out),
                                      progress=progress_wanted(args), table=args.format, figures=not args.no_figures)
     payload = {"files": [str(f) for f in files], "poses": int(gmap.effort.tau[..., 0].size)}
     emit(args, payload, "\n".join(f"wrote {f}" for f in files))
+
+
+def grid_torque_map(args) -> None:
+    from rcm_kin.statics.holding import check_actuated, default_pose, torque_map, write_torque_map
+    from rcm_kin.statics.maps import check_map_size, parse_range, resolve_drive
+
+    if any(x is not None for x in (args.roll, args.pitch, args.insertion)):
+        raise RcmKinError("--grid replaces --roll/--pitch/--insertion: give the joints' values with --grid and --at")
+    robot = load_robot(args.robot, counterweights=not args.no_counterweights)
+    drive = resolve_drive(robot, args.params)
+    grid = {}
+    for name, text in joint_assignments(args.grid, "--grid"):
+        check_actuated(robot, name)
+        if name in grid:
+            raise RcmKinError(f"--grid names {name} twice: give two different joints")
+        grid[name] = np.linspace(*parse_range(text, f"--grid {name}"))
+    if len(grid) != 2:
+        raise RcmKinError(f"--grid takes two joints J=LO:HI:N J=LO:HI:N, got {len(grid)}")
+    check_map_size(np.prod([v.size for v in grid.values()]))
+    q = default_pose(robot)
+    for name, text in joint_assignments(args.at or [], "--at"):
+        check_actuated(robot, name)
+        if name in grid:
+            raise RcmKinError(f"--at {name}: {name} is a joint of the grid")
+        q[robot.actuated.index(name)] = to_si(robot, name, floats([text], f"--at {name}")[0])
+    grid = {name: to_si(robot, name, values) for name, values in grid.items()}
+    tmap = torque_map(robot, grid, q, drive, progress=progress_wanted(args))
+    files = write_torque_map(tmap, output_folder(args.out), args.format, figures=not args.no_figures)
+    payload = {"files": [str(f) for f in files], "poses": tmap.poses, "joints": list(tmap.joints),
+               "model": tmap.model}
+    emit(args, payload, "\n".join([*(f"wrote {f}" for f in files), f"model: {tmap.model}"]))
+
+
+def joint_assignments(words: list[str], flag: str) -> list[tuple[str, str]]:
+    """``J=VALUE`` words as (joint, value text), or a user error naming ``flag``."""
+    out = []
+    for word in words:
+        name, sep, value = word.partition("=")
+        if not sep or not name or not value:
+            raise RcmKinError(f"{flag} takes JOINT=VALUE words (e.g. j2=-40:60:51), got {word!r}"[:200])
+        out.append((name, value))
+    return out
+
+
+def to_si(robot, joint: str, value):
+    """A command-line joint value (degrees for a revolute joint, metres for a prismatic one) in rad or m."""
+    return np.radians(value) if robot.joint_kind(joint) == "revolute" else value
 
 
 def cmd_calibrate(args) -> None:

@@ -1,16 +1,19 @@
-"""Statics: what it takes to hold a pose (holding-effort maps, counterweight design)."""
+"""Statics: what it takes to hold a pose (holding effort, torque maps of any robot, counterweight design)."""
 
 import lazy_loader
 
 __all__ = [
-    "CounterweightDesign", "GravityMap", "HoldingEffort", "design_counterweights", "gravity_map", "holding_effort",
-    "write_gravity_maps",
+    "CounterweightDesign", "CounterweightPlacement", "GravityMap", "HoldingEffort", "TorqueMap",
+    "design_counterweights", "gravity_map", "holding_effort", "place_counterweight", "torque_map",
+    "write_gravity_maps", "write_torque_map",
 ]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,
     submod_attrs={
         "maps": ["GravityMap", "HoldingEffort", "gravity_map", "holding_effort", "write_gravity_maps"],
-        "counterweights": ["CounterweightDesign", "design_counterweights"],
+        "holding": ["TorqueMap", "torque_map", "write_torque_map"],
+        "counterweights": ["CounterweightDesign", "CounterweightPlacement", "design_counterweights",
+                           "place_counterweight"],
     },
 )

@@ -20,13 +20,16 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+import pinocchio as pin
 from scipy.optimize import lsq_linear
 
-from rcm_kin.dynamics.drive import DriveParameters
+from rcm_kin.dynamics.drive import DriveParameters, model_label
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import DPM_COUNTERWEIGHT, HOME_INSERTION, MAIN_COUNTERWEIGHT
 from rcm_kin.model import load_robot
 from rcm_kin.model.gravity import gravity_batch, point_mass_gravity_batch
+from rcm_kin.statics.holding import check_actuated, default_pose, grid_axes, with_counterweights
+from rcm_kin.statics.maps import resolve_drive
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
@@ -129,3 +132,113 @@ def osmdv_designs(drive: DriveParameters, points: int = 13) -> OsmdvDesigns:
     both = design_counterweights(without, cad, Q, main_mass, dpm_mass)
     span = [(float(np.degrees(Q[:, k].min())), float(np.degrees(Q[:, k].max()))) for k in (0, 1)]
     return OsmdvDesigns(roll_only, both, span[0], span[1], points, float(Q[0, 2]))
+
+
+@dataclass(frozen=True)
+class CounterweightPlacement:
+    """A counterweight of any robot placed by :func:`place_counterweight`: where its mass best holds
+    the arm over a grid, beside the robot as built (the URDF's counterweight) and without it."""
+
+    link: str                  # the counterweight link (the sidecar's ``counterweights``)
+    mount: str                 # the link it is fixed to; positions are in this link's frame
+    mass: float                # kg
+    position: np.ndarray       # (3,) m, designed
+    as_built: np.ndarray       # (3,) m, the URDF's centre of mass of the counterweight
+    joints: tuple[str, ...]    # the joints weighed
+    unit: str                  # of the efforts: "N m" (torque; N for prismatic) or "PWM counts"
+    rms: np.ndarray            # per joint, RMS holding effort over the grid with the design
+    peak: np.ndarray           # per joint, largest |effort| with the design
+    rms_as_built: np.ndarray   # per joint, with the URDF's counterweight
+    rms_without: np.ndarray    # per joint, without this counterweight (any other as built)
+    rank: int                  # of the design problem: below 3 a direction is free (e.g. along the joint
+                               # axis, which never changes a torque): the minimum-norm position is given
+    model: str                 # "CAD (URDF inertias)" or "calibration <file>"
+
+    @property
+    def distance(self) -> float:
+        """Distance (m) of the designed position from the mount link's origin."""
+        return float(np.linalg.norm(self.position))
+
+
+def mount_link(robot: Robot, link: str) -> str:
+    """The link a (fixed) counterweight link hangs on: the first body frame above it."""
+    model = robot.tree
+    index = model.getFrameId(link)
+    while index != 0:
+        index = model.frames[index].parentFrame
+        if model.frames[index].type == pin.FrameType.BODY:
+            return model.frames[index].name
+    raise RcmKinError(f"the counterweight link {link} of {robot.name} is not fixed to another link", parameter="link")
+
+
+def place_counterweight(robot: Robot, link: str, grid: dict, q=None, mass: float | None = None, drive=None,
+                        joints=None, max_distance: float = 0.30) -> CounterweightPlacement:
+    """Position (in the frame of the link it is fixed to) of the counterweight ``link`` (one of the
+    sidecar's ``counterweights``), of ``mass`` kg (default: the URDF's), that minimises the RMS holding
+    effort of ``joints`` (default: the drive's, weighed in PWM counts; without a drive every actuated
+    joint, in N m) over ``grid`` ({joint: values, rad or m}, two actuated joints; the others at ``q``).
+    Gravity is affine in the position: a linear least-squares problem (minimum-norm where the grid
+    leaves a direction free), bounded by ``max_distance`` (m) per axis."""
+    if link not in robot.description.counterweights:
+        raise RcmKinError(f"{link} is not a counterweight of {robot.name} (its sidecar's counterweights: "
+                          f"{', '.join(robot.description.counterweights) or 'none'})", parameter="link")
+    full, without = with_counterweights(robot, True), with_counterweights(robot, False)
+    params = resolve_drive(full, drive)
+    names, values = grid_axes(full, grid)
+    base_q = default_pose(full) if q is None else full.check_limits(full.check_q(q))
+    A_, B_ = np.meshgrid(*values, indexing="ij")
+    Q = np.broadcast_to(base_q, (A_.size, full.nq)).copy()
+    Q[:, full.actuated.index(names[0])], Q[:, full.actuated.index(names[1])] = A_.ravel(), B_.ravel()
+    weighed, gain, unit = _weighing(full, params, joints)
+    offsets = {} if params is None else params.gravity_offsets
+    cols = [full.actuated.index(j) for j in weighed]
+
+    def effort(r: Robot) -> np.ndarray:
+        return gravity_batch(r, Q, offsets)[:, cols] * gain
+
+    mount = mount_link(full, link)
+    j = full.tree.frames[full.tree.getFrameId(mount)].parentJoint
+    built_mass = full.tree.inertias[j].mass - without.tree.inertias[j].mass
+    mass = built_mass if mass is None else float(mass)
+    if not mass > 0:
+        raise RcmKinError(f"the counterweight {link} needs a positive mass (kg), got {mass:g}", parameter="mass")
+    built = _as_built(full, without, mount, j, built_mass)
+
+    def point_effort(p) -> np.ndarray:
+        return point_mass_gravity_batch(full, Q, mount, p)[:, cols] * gain
+
+    # the robot with its other counterweights as built and without this one
+    base = effort(full) - (built_mass * point_effort(built) if built_mass > 0 else 0.0)
+    point = [point_effort(p) for p in np.vstack([np.zeros(3), np.eye(3)])]
+    A = mass * np.column_stack([(p - point[0]).ravel() for p in point[1:]])
+    b = -(base + mass * point[0]).ravel()
+    x, _, rank, _ = np.linalg.lstsq(A, b, rcond=1e-10)
+    if np.abs(x).max() > max_distance:
+        x = lsq_linear(A, b, bounds=(-max_distance, max_distance)).x
+    residual = (A @ x - b).reshape(-1, len(cols))
+    rms = lambda e: np.sqrt(np.mean(e**2, axis=0))  # noqa: E731
+    return CounterweightPlacement(link, mount, mass, x, built, weighed, unit, rms(residual),
+                                  np.abs(residual).max(axis=0), rms(effort(full)), rms(base), int(rank),
+                                  model_label(params))
+
+
+def _weighing(robot: Robot, params, joints) -> tuple[tuple[str, ...], np.ndarray, str]:
+    """The joints weighed by a design, their weights (PWM per N m with a drive, else 1) and unit."""
+    default = robot.actuated if params is None else params.driven
+    weighed = tuple(default if joints is None else joints)
+    for name in weighed:
+        check_actuated(robot, name)
+    if params is None or not set(weighed) <= set(params.driven):
+        return weighed, np.ones(len(weighed)), "N m"
+    return weighed, np.array([params[n].pwm_per_torque for n in weighed]), "PWM counts"
+
+
+def _as_built(full: Robot, without: Robot, mount: str, joint: int, mass: float) -> np.ndarray:
+    """The URDF counterweight's centre of mass in the mount link's frame (from the joint body's
+    first moments with and without it)."""
+    if mass <= 0:
+        return np.full(3, np.nan)
+    a, b = full.tree.inertias[joint], without.tree.inertias[joint]
+    lever = (a.mass * a.lever - b.mass * b.lever) / mass            # in the joint's frame
+    frame = full.tree.frames[full.tree.getFrameId(mount)]
+    return frame.placement.actInv(pin.SE3(np.eye(3), lever)).translation.copy()

@@ -24,8 +24,11 @@ from rcm_kin.dynamics.drive import (
     DRIVEN,
     DriveEffort,
     DriveParameters,
+    check_drive,
     drive_effort,
     load_drive_parameters,
+    model_label,
+    robot_drive,
 )
 from rcm_kin.dynamics.state_space import driven_gravity_function
 from rcm_kin.errors import RcmKinError, WorkLimitError
@@ -116,23 +119,51 @@ def _on_grid(values: np.ndarray, x: float, name: str, unit: str) -> int:
     return k
 
 
+def require_masses(robot: Robot, what: str) -> None:
+    """A one-line error when no link of ``robot``'s URDF has a mass: ``what`` would be all zeros.
+    (Stand-in for ``rcm_kin.model.require_masses`` until the loader's lands; swap it then.)"""
+    if all(inertia.mass == 0.0 for inertia in robot.tree.inertias[1:]):
+        raise RcmKinError(f"{robot.name}: its URDF gives no link a mass (<inertial>): {what} would be all zeros; "
+                          "add the links' inertial data to the URDF", parameter="robot")
+
+
+def resolve_drive(robot: Robot, drive=None) -> DriveParameters | None:
+    """The drive a result of ``robot`` uses: ``drive`` (DriveParameters, or the path of a drive file)
+    checked against the robot (:func:`check_drive`: a file of another robot is a one-line error),
+    else the robot's own (:func:`robot_drive`; None: CAD, torque only)."""
+    if drive is None:
+        return robot_drive(robot)
+    if isinstance(drive, (str, Path)):
+        drive = load_drive_parameters(drive)
+    if not isinstance(drive, DriveParameters):
+        raise RcmKinError(f"`drive` must be DriveParameters or the path of a drive file, got {type(drive).__name__}",
+                          parameter="drive")
+    return check_drive(robot, drive)
+
+
 @dataclass(frozen=True)
 class HoldingEffort:
-    """Gravity load at one pose: every actuated joint, and for the PSM its drives."""
+    """Gravity load at one pose: every actuated joint, and the drive's joints where one is described."""
 
     tau: np.ndarray                 # N m (N for prismatic), actuated order
-    drive: DriveEffort | None       # PSM only: the DRIVEN joints' voltage, PWM, saturation
+    drive: DriveEffort | None       # the drive's joints (``driven`` order): voltage, PWM, saturation
+    model: str = "CAD (URDF inertias)"   # which model: rcm_kin.dynamics.drive.model_label
+    driven: tuple[str, ...] = ()         # the joints of ``drive`` (empty without a drive)
 
 
-def holding_effort(robot, q, params: str | Path | None = None) -> HoldingEffort:
-    """Holding effort at actuated ``q``. The PSM's includes its calibrated gravity offsets and drive
-    model from the parameter TOML ``params`` (default: the shipped set), read for the PSM only."""
-    q = np.asarray(q, dtype=float)
-    if robot.name != "psm":
+def holding_effort(robot: Robot, q, drive=None) -> HoldingEffort:
+    """Holding effort of ``robot`` at actuated ``q`` (rad, m): the closed chain's gravity on every
+    actuated joint and, with a drive (``drive`` given: DriveParameters or a drive file, checked
+    against the robot; else the robot's sidecar drive), its calibrated gravity offsets and the
+    motor effort of ``params.driven``. Without one: the URDF inertias, torque only."""
+    q = robot.check_q(q)
+    require_masses(robot, "the holding torque")
+    params = resolve_drive(robot, drive)
+    if params is None:
         return HoldingEffort(gravity_batch(robot, q[None])[0], None)
-    drive = load_drive_parameters(params)
-    tau = gravity_batch(robot, q[None], drive.gravity_offsets)[0]
-    return HoldingEffort(tau, drive_effort(drive, tau[:3]))
+    tau = gravity_batch(robot, q[None], params.gravity_offsets)[0]
+    driven = tau[[robot.actuated.index(j) for j in params.driven]]
+    return HoldingEffort(tau, drive_effort(params, driven), model_label(params), params.driven)
 
 
 def parse_range(text: str, what: str) -> tuple[float, float, int]:

@@ -1,0 +1,97 @@
+"""The torque map of any robot per pose, next to a plain Pinocchio gravity loop on the same model, same run:
+
+- the MTM over j2 x j3 (201 x 201, j1 at 20 deg) and a UR5 from example-robot-data (a sidecar written in
+  a temporary folder) over shoulder_lift x elbow (201 x 201): :func:`rcm_kin.statics.holding.torque_map`
+  (the closed chain's gravity of every actuated joint compiled to C and mapped over the poses), per pose;
+- the plain call: ``pin.computeGeneralizedGravity`` on the robot's open tree (both are serial arms: tree q
+  = actuated q) in a Python loop over the same poses, per pose;
+- the PSM: today's path (``gravity_map``, roll x pitch at one insertion: the driven model's gravity and
+  the drive) and the generic map over the same poses (all seven actuated joints, then the drive), per pose.
+
+    python benchmarks/bench_torque_map_any.py
+Target: the generic path costs no more per pose than the PSM path (ratio <= 1.0, within timing noise).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS
+
+import tempfile  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
+from common import best_of, report  # noqa: E402
+
+from rcm_kin import load_robot  # noqa: E402
+from rcm_kin.statics.holding import torque_map  # noqa: E402
+from rcm_kin.statics.maps import gravity_map  # noqa: E402
+
+N = 201
+
+
+def ur5(folder: Path):
+    from example_robot_data.robots_loader import UR5Loader
+
+    joints = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+              "wrist_3_joint"]
+    (folder / "ur5.toml").write_text(f'robot = "ur5"\nurdf = "{UR5Loader().df_path}"\n'
+                                     f"actuated = {joints}\n".replace("'", '"') + 'frames = ["tool0"]\n')
+    return load_robot(folder / "ur5.toml")
+
+
+def plain_loop(robot, q, index, values) -> float:
+    """Seconds per pose of pin.computeGeneralizedGravity over the grid in a Python loop (the open tree)."""
+    model, data = robot.tree, robot.tree.createData()
+    A, B = np.meshgrid(*values, indexing="ij")
+    poses = np.broadcast_to(q, (A.size, robot.nq)).copy()
+    poses[:, index[0]], poses[:, index[1]] = A.ravel(), B.ravel()
+
+    def loop():
+        for p in poses:
+            pin.computeGeneralizedGravity(model, data, p)
+
+    return best_of(loop, 2) / A.size
+
+
+def serial_arm(name, robot, grid, q) -> tuple[list, float, float]:
+    torque_map(robot, {k: v[:2] for k, v in grid.items()}, q)          # compiles (or loads) once
+    ours = best_of(lambda: torque_map(robot, grid, q)) / N**2
+    plain = plain_loop(robot, np.asarray(q, float), [robot.actuated.index(k) for k in grid], list(grid.values()))
+    return [(f"{name} torque map {N} x {N}, per pose", ours),
+            (f"{name} pin.computeGeneralizedGravity loop, per pose", plain)], ours, plain
+
+
+def main() -> None:
+    rows, ratios = [], []
+    mtm = load_robot("mtm")
+    grid = {"j2": np.radians(np.linspace(-40, 60, N)), "j3": np.radians(np.linspace(-30, 80, N))}
+    r, ours, plain = serial_arm("MTM", mtm, grid, np.radians([20, 0, 0, 0, 0, 0, 0]))
+    rows += r
+    ratios.append(("MTM map/plain", ours / plain))
+    with tempfile.TemporaryDirectory() as tmp:
+        arm = ur5(Path(tmp))
+        grid = {"shoulder_lift_joint": np.radians(np.linspace(-90, 0, N)),
+                "elbow_joint": np.radians(np.linspace(0, 120, N))}
+        r, ours, plain = serial_arm("UR5", arm, grid, [0.3, 0, 0, -0.5, 0.2, 0])
+        rows += r
+        ratios.append(("UR5 map/plain", ours / plain))
+    psm = load_robot("psm")
+    deg = np.linspace(-30, 30, N)
+    gravity_map(psm, None, deg[:2], deg[:2], [0.08])
+    today = best_of(lambda: gravity_map(psm, None, deg, deg, [0.08])) / N**2
+    generic_grid = {"pitch": np.radians(deg), "roll": np.radians(deg)}
+    q = [0, 0, 0.08, 0, 0, 0, 0]
+    torque_map(psm, {k: v[:2] for k, v in generic_grid.items()}, q)
+    generic = best_of(lambda: torque_map(psm, generic_grid, q)) / N**2
+    rows += [(f"PSM today's path (gravity_map, roll x pitch {N} x {N}), per pose", today),
+             ("PSM generic torque_map, same poses, per pose", generic)]
+    ratios.append(("PSM generic/today (target <= 1.0)", generic / today))
+    report(rows)
+    print("; ".join(f"{name} = {value:.3f}" for name, value in ratios))
+
+
+if __name__ == "__main__":
+    main()
