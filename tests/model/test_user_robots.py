@@ -97,7 +97,7 @@ def test_dvrk_without_inertials_refuses_gravity(dvrk, capsys):
     capsys.readouterr()
     assert main(["gravity", str(dvrk.urdf)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("error: gravity needs masses: links outer_yaw_link")
+    assert len(err) == 1 and err[0].startswith("error: the holding torque needs masses: links outer_yaw_link")
 
 
 def test_some_links_without_inertials_warn_once(tmp_path):

@@ -29,9 +29,10 @@ from rcm_kin.dynamics.drive import DriveEffort, DriveParameters, drive_effort, m
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.loading import build_robot
+from rcm_kin.model.masses import require_masses
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.plotting import torque_heatmaps
-from rcm_kin.statics.maps import HoldingEffort, check_map_size, require_masses, resolve_drive
+from rcm_kin.statics.maps import HoldingEffort, check_map_size, resolve_drive
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
 from rcm_kin.symbolic.compiled import compiled, map_points
 from rcm_kin.symbolic.tree import tree_joints, world_placements

@@ -34,6 +34,7 @@ from rcm_kin.dynamics.state_space import driven_gravity_function
 from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.model.gravity import gravity_batch
+from rcm_kin.model.masses import require_masses
 from rcm_kin.plotting import effort_heatmaps, insertion_curves, thesis_trend_curves
 from rcm_kin.symbolic.compiled import compiled, map_points
 
@@ -117,14 +118,6 @@ def _on_grid(values: np.ndarray, x: float, name: str, unit: str) -> int:
     if not abs(values[k] - x) <= 1e-9 * max(1.0, abs(x)):
         raise RcmKinError(f"{name} {x:g} {unit} is not on the map's grid (nearest {values[k]:g} {unit})")
     return k
-
-
-def require_masses(robot: Robot, what: str) -> None:
-    """A one-line error when no link of ``robot``'s URDF has a mass: ``what`` would be all zeros.
-    (Stand-in for ``rcm_kin.model.require_masses`` until the loader's lands; swap it then.)"""
-    if all(inertia.mass == 0.0 for inertia in robot.tree.inertias[1:]):
-        raise RcmKinError(f"{robot.name}: its URDF gives no link a mass (<inertial>): {what} would be all zeros; "
-                          "add the links' inertial data to the URDF", parameter="robot")
 
 
 def resolve_drive(robot: Robot, drive=None) -> DriveParameters | None:

@@ -44,7 +44,7 @@ def mtm_section(out: Path, map_points: int = 61) -> MtmSection:
     from rcm_kin.control.linearization import linearize
     from rcm_kin.dynamics.state_space import driven_dynamics
     from rcm_kin.statics.counterweights import place_counterweight
-    from rcm_kin.statics.torque_map import torque_map, write_torque_map
+    from rcm_kin.statics.holding import torque_map, write_torque_map
 
     mtm = load_robot("mtm")
     k = [mtm.actuated.index(j) for j in (SHOULDER, ELBOW)]
