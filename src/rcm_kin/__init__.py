@@ -26,7 +26,7 @@ _API = {
     "model": ["Robot", "RobotData", "load_robot", "robot_names", "joint_table", "gravity_torque"],
     "kinematics": ["forward_kinematics", "inverse_kinematics"],
     "dynamics": ["load_drive_parameters", "driven_dynamics", "holding_pwm"],
-    "statics": ["GravityMap", "gravity_map", "holding_effort"],
+    "statics": ["GravityMap", "gravity_map", "holding_effort", "TorqueMap", "torque_map", "place_counterweight"],
     "control": ["linearize", "linearize_grid", "schedule_gains"],
     "simulation": ["simulate", "run_experiment", "tracking_metrics"],
     "visualization": ["robot_view", "show", "write_html"],
