@@ -22,10 +22,11 @@ control is the joint torque (N m) or force (N); a driven joint's motor is limite
 to the torque of the firmware's PWM saturation at rest, ``PWM_LIMIT / |pwm_per_torque|`` (the
 back-EMF's loss of torque with speed is not expressible). A CAD export has no drives.
 
-Visuals: the URDF's boxes, cylinders and spheres, and its STL and OBJ meshes as MuJoCo mesh assets
-(found by :func:`~rcm_kin.model.geometry.visual_geometry`: ``package://`` through ``package_dirs``
-or ``ROS_PACKAGE_PATH``; a mesh not found is an error). MuJoCo reads no other mesh format: such a
-visual is left out with a warning naming the files (the bodies, masses and joints are whole).
+Visuals: the URDF's boxes, cylinders and spheres, and its OBJ and binary STL meshes as MuJoCo mesh
+assets (found by :func:`~rcm_kin.model.geometry.visual_geometry`: ``package://`` through
+``package_dirs`` or ``ROS_PACKAGE_PATH``; a mesh not found is an error). MuJoCo reads no other mesh
+(COLLADA, PLY, ASCII STL): such a visual is left out with a warning naming the files (the bodies,
+masses and joints are whole), not an error: the model's physics does not need it.
 
 Keyframes: ``home`` (every joint at 0 clipped into its range; the PSM insertion at
 :data:`~rcm_kin.hardware.HOME_INSERTION`) and, for the PSM, ``roll{R}_pitch{P}`` over the
@@ -64,7 +65,7 @@ LOOP_SOLREF = "0.002 1"              # loop constraints: 2 ms time constant, cri
 LOOP_SOLIMP = "0.9999 0.9999 0.001"  # impedance at MuJoCo's maximum: the loops barely give
 MASS_FLOOR = (1e-9, 1e-12)           # kg, kg m^2: MuJoCo's floor for massless moving bodies (da Vinci)
 TIMESTEP = 0.0005                    # s: four steps per loop time constant (MuJoCo wants >= 2)
-MESH_FORMATS = (".stl", ".obj")      # mesh files MuJoCo reads (others: the visual is left out, a warning)
+MESH_FORMATS = (".stl", ".obj")      # mesh files MuJoCo reads, STL binary (others: the visual left out, a warning)
 MODEL_TEXT = "rcm_kin_model"         # <custom><text name=...>: the model the file holds
 
 
@@ -151,20 +152,35 @@ def _mesh_key(obj) -> tuple[str, str] | None:
     return obj.meshPath, _fmt(obj.meshScale)
 
 
+def mujoco_reads(path: str | Path) -> bool:
+    """Whether MuJoCo reads the mesh file: OBJ, or binary STL (84 bytes of header and count, then
+    50 bytes a triangle; an ASCII STL is refused by MuJoCo's decoder)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in MESH_FORMATS:
+        return False
+    if suffix == ".stl":
+        with path.open("rb") as f:
+            head = f.read(84)
+        return len(head) == 84 and path.stat().st_size == 84 + 50 * int.from_bytes(head[80:84], "little")
+    return True
+
+
 def _mesh_assets(visual: pin.GeometryModel) -> dict[tuple, str]:
-    """(file, scale) -> asset name of the visuals' STL and OBJ meshes; a warning lists the other
+    """(file, scale) -> asset name of the visuals' meshes MuJoCo reads; a warning lists the other
     mesh files, whose visuals are left out."""
     meshes, unread = {}, []
     for obj in visual.geometryObjects:
-        if (key := _mesh_key(obj)) is None or key in meshes:
+        if (key := _mesh_key(obj)) is None or key in meshes or key[0] in unread:
             continue
-        if Path(key[0]).suffix.lower() in MESH_FORMATS:
+        if mujoco_reads(key[0]):
             meshes[key] = f"mesh{len(meshes)}_{Path(key[0]).stem}"
-        elif key[0] not in unread:
+        else:
             unread.append(key[0])
     if unread:
-        warn(f"MJCF: MuJoCo reads {' and '.join(s[1:].upper() for s in MESH_FORMATS)} meshes only; the visuals of "
-             f"{', '.join(unread[:3])}{' ...' if len(unread) > 3 else ''} ({len(unread)} files) are left out "
+        warn(f"MJCF: MuJoCo reads OBJ and binary STL meshes only; the visual{'s' if len(unread) > 1 else ''} of "
+             f"{', '.join(unread[:3])}{f' and {len(unread) - 3} more' if len(unread) > 3 else ''} "
+             f"{'are' if len(unread) > 1 else 'is'} left out "
              "(masses and joints are whole)", RcmKinWarning)
     return meshes
 
