@@ -100,8 +100,9 @@ def test_motors_holding_our_gravity_torques_keep_the_arm_at_rest(psm_model, key)
     """Controls = the exported model's gravity torques (the shipped calibration; Pinocchio's
     constrained method on the calibrated inertias: loop solve + projection). The arm (roll,
     pitch, insertion and the parallelogram joints) stays under 1e-3 rad/s (m/s) for 0.5 s; without the
-    motors it falls (the insertion slides out at about 1 m/s; the exported Coulomb friction holds roll
-    and pitch, and +-30 deg are the pitch limits). The instrument is held too at home; elsewhere its 6 g
+    motors it falls (the insertion slides out at about 1 m/s; the calibrated gravity, up to 5 N m,
+    overcomes the drives' Coulomb friction, 1.1-1.3 N m, on roll and pitch but where pitch rests on
+    its +-30 deg limits). The instrument is held too at home; elsewhere its 6 g
     wrist is an unstable equilibrium (growth rate up to 18 /s by our linearisation, e^9 in 0.5 s) that
     the start-up
     transient of MuJoCo's soft loop constraints tips over, so it is not asserted there."""
