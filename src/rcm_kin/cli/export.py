@@ -48,7 +48,7 @@ def add_export(sub) -> None:
 def _check_c(args) -> None:
     """``--c DIR``: the bundled PSM's, a folder path, no files overwritten without --force."""
     if args.robot != "psm":
-        raise RcmKinError(f"--c writes the bundled PSM's firmware model; {args.robot} is not the bundled psm "
+        raise RcmKinError(f"--c writes the bundled PSM's holding PWM for its firmware; {args.robot} is not the bundled psm "
                           "(rcm-kin export psm --c DIR; --mjcf works for any robot)")
     if not str(args.c).strip():
         raise RcmKinError("--c: an empty folder path; give the folder for rcm_psm_model.h/.c (created if missing)")
