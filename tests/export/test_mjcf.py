@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from rcm_kin.cli import main
-from rcm_kin.export.mjcf import keyframes
+from rcm_kin.dynamics.drive import robot_drive
+from rcm_kin.export.calibrated import calibrated_robot
+from rcm_kin.export.mjcf import keyframes, write_mjcf
 from rcm_kin.export.mujoco_check import (
     actuated_q,
     at_keyframe,
@@ -71,9 +73,10 @@ def test_psm_keyframes_are_home_and_the_thesis_grid(psm_model):
     data = at_keyframe(psm_model, "roll-30_pitch30")
     np.testing.assert_allclose(actuated_q(psm_model, data, psm)[:3], [np.radians(-30), np.radians(30), 0.08],
                                rtol=0, atol=1e-15)
-    for i in range(psm_model.nkey):     # each keyframe's controls hold it: our gravity, the loop-solve way
+    calibrated = calibrated_robot(psm, robot_drive(psm))
+    for i in range(psm_model.nkey):     # each keyframe's controls hold it: the calibrated gravity, the loop-solve way
         q = actuated_q(psm_model, at_keyframe(psm_model, psm_model.key(i).name), psm)
-        np.testing.assert_allclose(psm_model.key(i).ctrl, gravity_torque(psm, q, method="constrained"),
+        np.testing.assert_allclose(psm_model.key(i).ctrl, gravity_torque(calibrated, q, method="constrained"),
                                    rtol=0, atol=1e-9)
 
 
@@ -94,38 +97,49 @@ def test_mujoco_kinematics_closes_the_loops_and_places_our_frames(psm_model, key
 
 @pytest.mark.parametrize("key", ["home"] + GRID)
 def test_motors_holding_our_gravity_torques_keep_the_arm_at_rest(psm_model, key):
-    """Controls = our gravity torques (constrained method: loop solve + projection). The arm (roll,
+    """Controls = the exported model's gravity torques (the shipped calibration; Pinocchio's
+    constrained method on the calibrated inertias: loop solve + projection). The arm (roll,
     pitch, insertion and the parallelogram joints) stays under 1e-3 rad/s (m/s) for 0.5 s; without the
-    motors it falls (the insertion slides out at about 1 m/s; the exported Coulomb friction holds roll
-    and pitch, and +-30 deg are the pitch limits). The instrument is held too at home; elsewhere its 6 g
+    motors it falls (the insertion slides out at about 1 m/s; the calibrated gravity, up to 5 N m,
+    overcomes the drives' Coulomb friction, 1.1-1.3 N m, on roll and pitch but where pitch rests on
+    its +-30 deg limits). The instrument is held too at home; elsewhere its 6 g
     wrist is an unstable equilibrium (growth rate up to 18 /s by our linearisation, e^9 in 0.5 s) that
     the start-up
     transient of MuJoCo's soft loop constraints tips over, so it is not asserted there."""
     psm = load_robot("psm")
+    calibrated = calibrated_robot(psm, robot_drive(psm))
     q = actuated_q(psm_model, at_keyframe(psm_model, key), psm)
-    held = hold_speeds(psm_model, at_keyframe(psm_model, key, gravity_torque(psm, q, method="constrained")), 0.5)
+    held = hold_speeds(psm_model, at_keyframe(psm_model, key, gravity_torque(calibrated, q, method="constrained")),
+                       0.5)
     arm = {j: v for j, v in held.items() if j not in INSTRUMENT or key == "home"}
     assert max(arm.values()) < 1e-3, arm
     fallen = hold_speeds(psm_model, at_keyframe(psm_model, key, np.zeros(psm.nq)), 0.5)
     assert max(v for j, v in fallen.items() if j not in INSTRUMENT) > 0.05
 
 
-def test_free_swing_follows_our_dynamics(exported, params):
-    """1 s from rest at home, no motor torque, joint limits off (ours has none), Coulomb friction
-    off (MuJoCo's frictionloss is a hard dry friction, ours a tanh law): MuJoCo's RK4 (0.5 ms)
-    and our closed-chain dynamics agree to 1e-4 of each joint's travel. Why 1e-4: MuJoCo's loop
-    constraints are soft, regularised by (1 - d)/d = 1e-4 of their inertia at our impedance
-    d = 0.9999; the difference does not shrink with the step (0.5, 0.25, 0.1 ms agree to 3 digits),
-    so it is that regularisation, not the integration. Without the loop constraints MuJoCo's arm
-    leaves ours by far more: the comparison sees the loops."""
+@pytest.mark.parametrize("model_of, seconds", [("calibration", 0.2), ("cad", 1.0)])
+def test_free_swing_follows_our_dynamics(exported, tmp_path, model_of, seconds):
+    """From rest at home, no motor torque, joint limits off (ours has none), Coulomb friction off
+    (MuJoCo's frictionloss is a hard dry friction, ours a tanh law): MuJoCo's RK4 (0.5 ms) and our
+    closed-chain dynamics of the same model (the calibrated export beside Pinocchio on the
+    calibrated inertias, with the drives' armature and damping; the CAD export beside the URDF's
+    model) agree to 1e-4 of each joint's travel. Why 1e-4: MuJoCo's loop constraints are soft,
+    regularised by (1 - d)/d = 1e-4 of their inertia at our impedance d = 0.9999; the difference
+    does not shrink with the step (0.5, 0.25, 0.1 ms agree to 3 digits), so it is that
+    regularisation, not the integration. The calibrated arm falls fast: 0.2 s (pitch 0.33 rad);
+    past about 0.35 s it leaves the joint ranges (pitch -83 deg, insertion 0.67 m at 0.4 s) and the
+    two part there. Without the loop constraints MuJoCo's arm leaves ours by far more: the
+    comparison sees the loops."""
     psm = load_robot("psm")
-    model = mujoco.MjModel.from_xml_path(str(exported["psm"]))
+    drive = robot_drive(psm) if model_of == "calibration" else None
+    path = exported["psm"] if drive else write_mjcf(psm, tmp_path / "cad.xml", None)
+    model = mujoco.MjModel.from_xml_path(str(path))
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_LIMIT
     model.dof_frictionloss[:] = 0.0
-    times = np.arange(0.0, 1.0 + 1e-9, 0.01)
+    times = np.arange(0.0, seconds + 1e-9, 0.01)
     theirs = mujoco_swing(model, at_keyframe(model, "home", np.zeros(psm.nq)), psm, times)
-    ours = closed_chain_swing(psm, theirs[0], times, *drive_terms(psm, params))
+    ours = closed_chain_swing(calibrated_robot(psm, drive), theirs[0], times, *drive_terms(psm, drive))
     travel = np.max(np.abs(ours - ours[0]), axis=0)
     assert travel[psm.actuated.index("pitch")] > 0.3          # it does swing
     np.testing.assert_array_less(np.max(np.abs(theirs - ours), axis=0), 1e-4 * travel + 1e-12)

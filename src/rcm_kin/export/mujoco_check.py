@@ -1,5 +1,8 @@
 """The exported MJCF run in MuJoCo beside our own closed-chain dynamics (needs the ``[mujoco]`` extra).
 
+- :func:`model_text`: the model an exported file holds (its ``<custom>`` text);
+- :func:`allowed_acceleration`: MuJoCo's acceleration along the motions its loops allow (does a
+  set of torques hold the arm?);
 - :func:`hold_speeds`: MuJoCo from rest at a keyframe under constant motor controls; the largest
   speed of each joint (rad/s, m/s);
 - :func:`mujoco_swing` and :func:`closed_chain_swing`: a motion from rest without motor torque
@@ -14,8 +17,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
+from scipy.linalg import null_space
 
-from rcm_kin.dynamics.drive import DRIVEN, DriveParameters
+from rcm_kin.dynamics.drive import DriveParameters
+from rcm_kin.export.mjcf import MODEL_TEXT
 from rcm_kin.model.reduced import reduced_mass_matrix
 
 if TYPE_CHECKING:
@@ -32,6 +37,42 @@ def at_keyframe(model, key: str, ctrl=None):
         data.ctrl[:] = ctrl
     mujoco.mj_forward(model, data)
     return data
+
+
+def model_text(model, name: str = MODEL_TEXT) -> str:
+    """The ``<custom><text name=name>`` of a MuJoCo model: for an rcm-kin export, the model it holds."""
+    import mujoco
+
+    i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, name)
+    if i < 0:
+        return ""
+    start = model.text_adr[i]
+    return bytes(model.text_data[start:start + model.text_size[i] - 1]).decode()
+
+
+def allowed_acceleration(model, data) -> np.ndarray:
+    """The part of ``data.qacc`` (after ``mj_forward``) along the motions the equality constraints
+    allow: its M-orthogonal projection onto the null space N of their Jacobian J, ``N (N'MN)^-1 N'M
+    qacc`` (nv,), rad/s^2 or m/s^2. MuJoCo's soft constraints leave an acceleration error
+    ``M^-1 J' df`` (df: the regularised force's shortfall); N'M of it is N'J' df = 0, so this part is
+    the acceleration of the exactly closed chain, ``N (N'MN)^-1 N' qfrc_smooth``, whatever the
+    constraints' softness. No equality constraint: qacc itself."""
+    import mujoco
+
+    mass, column = np.zeros((model.nv, model.nv)), np.zeros(model.nv)
+    for i, unit in enumerate(np.eye(model.nv)):      # mj_mulM: one signature in MuJoCo 3 and 4
+        mujoco.mj_mulM(model, data, column, unit)
+        mass[:, i] = column
+    rows = data.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY
+    if not np.any(rows):
+        return data.qacc.copy()
+    if mujoco.mj_isSparse(model):
+        jac = np.zeros((data.nefc, model.nv))
+        mujoco.mju_sparse2dense(jac, data.efc_J, data.efc_J_rownnz, data.efc_J_rowadr, data.efc_J_colind)
+    else:
+        jac = data.efc_J.reshape(data.nefc, model.nv)
+    basis = null_space(jac[rows])
+    return basis @ np.linalg.solve(basis.T @ mass @ basis, basis.T @ mass @ data.qacc)
 
 
 def actuated_q(model, data, robot: Robot) -> np.ndarray:
@@ -63,11 +104,11 @@ def mujoco_swing(model, data, robot: Robot, times: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
-def drive_terms(robot: Robot, params: DriveParameters) -> tuple[np.ndarray, np.ndarray]:
+def drive_terms(robot: Robot, params: DriveParameters | None) -> tuple[np.ndarray, np.ndarray]:
     """Armature (reflected drive inertia, kg m^2 or kg) and viscous damping (N m s/rad, N s/m) per
-    actuated joint: the PSM's driven joints from ``params``, 0 elsewhere."""
+    actuated joint: the driven joints of ``params``, 0 elsewhere (everywhere for None, a CAD export)."""
     armature, damping = np.zeros(robot.nq), np.zeros(robot.nq)
-    for joint in DRIVEN:
+    for joint in () if params is None else params.driven:
         i = robot.actuated.index(joint)
         armature[i], damping[i] = params[joint].reflected_inertia, params[joint].viscous
     return armature, damping
