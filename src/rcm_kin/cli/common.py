@@ -230,3 +230,4 @@ def progress_wanted(args) -> bool:
     """Progress bars on stderr unless ``--json`` (scripts); a user error is printed after they are
     cleared (:func:`rcm_kin.cli.main`)."""
     return not getattr(args, "json", False)
+

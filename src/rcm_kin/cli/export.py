@@ -4,9 +4,16 @@ PSM's holding PWM for the firmware)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
-from rcm_kin.cli.common import RAW, BadValue, add_force, add_json, add_params, any_robot, emit, new_output
+from rcm_kin.cli.common import (
+    RAW,
+    add_force,
+    add_json,
+    add_params,
+    any_robot,
+    emit,
+    new_output,
+)
+from rcm_kin.cli.packages import add_package_dirs, package_dirs
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model import load_robot
 
@@ -16,14 +23,6 @@ EPILOG = ("examples: rcm-kin export psm --mjcf psm.xml   (MuJoCo: python -m mujo
           "          rcm-kin export psm --c firmware/model --json\n"
           "The MJCF holds the model `rcm-kin gravity` uses: the robot's own calibration (its sidecar's drive\n"
           "file; --params another of the same robot) as centre-of-mass shifts, or the URDF inertias (CAD).")
-
-
-def package_dir(text: str) -> tuple[str, str]:
-    """argparse ``type`` of ``--package-dir NAME=DIR``: (NAME, DIR)."""
-    name, sep, folder = text.partition("=")
-    if not sep or not name.strip() or not folder.strip():
-        raise BadValue(f"needs NAME=DIR (a ROS package's name and its folder), got {text[:60]!r}")
-    return name.strip(), str(Path(folder.strip()).expanduser())
 
 
 def add_export(sub) -> None:
@@ -37,8 +36,7 @@ def add_export(sub) -> None:
                                               "functions of roll, pitch (rad), insertion (m)")
     add_params(p, "drive parameter TOML of this robot (it must name it): its calibration goes into the MJCF "
                   "(default: the robot's own drive file, else the URDF inertias); with --c the PSM's drives")
-    p.add_argument("--package-dir", action="append", type=package_dir, default=[], metavar="NAME=DIR",
-                   help="folder of the ROS package NAME for package:// meshes (repeatable; also ROS_PACKAGE_PATH)")
+    add_package_dirs(p)
     add_force(p)
     add_json(p, '{"files": [...], "model": "CAD (URDF inertias)" | "calibration FILE"} and, with --c, '
                 '"operations": N, "functions": [...], "operation_counts": {...}')
@@ -48,8 +46,8 @@ def add_export(sub) -> None:
 def _check_c(args) -> None:
     """``--c DIR``: the bundled PSM's, a folder path, no files overwritten without --force."""
     if args.robot != "psm":
-        raise RcmKinError(f"--c writes the bundled PSM's holding PWM for its firmware; {args.robot} is not the bundled psm "
-                          "(rcm-kin export psm --c DIR; --mjcf works for any robot)")
+        raise RcmKinError(f"--c writes the bundled PSM's holding PWM for its firmware; {args.robot} is not the "
+                          "bundled psm (rcm-kin export psm --c DIR; --mjcf works for any robot)")
     if not str(args.c).strip():
         raise RcmKinError("--c: an empty folder path; give the folder for rcm_psm_model.h/.c (created if missing)")
     if not args.force:
@@ -73,7 +71,7 @@ def cmd_export(args) -> None:
         from rcm_kin.export.mjcf import write_mjcf
 
         params = robot_drive(robot) if args.params is None else check_drive(robot, load_drive_parameters(args.params))
-        payload["files"].append(str(write_mjcf(robot, mjcf, params, dict(args.package_dir))))
+        payload["files"].append(str(write_mjcf(robot, mjcf, params, package_dirs(args))))
         payload["model"] = model_label(params)
         lines += [f"wrote {payload['files'][-1]}", f"model: {payload['model']}"]
     if args.c is not None:

@@ -6,7 +6,6 @@ from pathlib import Path
 
 from rcm_kin.cli.common import (
     RAW,
-    BadValue,
     add_force,
     add_json,
     any_robot,
@@ -17,6 +16,7 @@ from rcm_kin.cli.common import (
     path_text,
     progress_wanted,
 )
+from rcm_kin.cli.packages import add_package_dirs, package_dirs
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model import load_robot
 from rcm_kin.statics.maps import MAX_POSES
@@ -41,32 +41,10 @@ def add_view(sub) -> None:
     p.add_argument("--png", metavar="FILE.png", help="write a picture instead of serving (see --renderer)")
     p.add_argument("--renderer", choices=("matplotlib", "browser"), default="matplotlib",
                    help="--png: a matplotlib drawing (default), or the meshcat page as headless Chromium draws it")
-    p.add_argument("--package-dir", action="append", default=[], type=package_dir, metavar="NAME=DIR",
-                   help="the folder of ROS package NAME, for the URDF's package://NAME/... meshes (repeatable; "
-                        "ROS_PACKAGE_PATH is searched too)")
+    add_package_dirs(p)
     add_force(p)
     add_json(p, '{"robot", "q", "written": [files]} (with --html or --png)')
     p.set_defaults(func=cmd_view)
-
-
-def package_dir(text: str) -> tuple[str, str]:
-    """``NAME=DIR`` of ``--package-dir``."""
-    name, sep, folder = text.partition("=")
-    if not (sep and name.strip() and folder.strip()):
-        raise BadValue(f"'{text}' is not NAME=DIR (a ROS package's name and its folder)")
-    return name.strip(), folder.strip()
-
-
-def package_dirs(args) -> dict[str, str] | None:
-    """The ``--package-dir`` pairs as {NAME: DIR} (None when none is given); a folder that is not
-    one, or a name given twice, is an error."""
-    found: dict[str, str] = {}
-    for name, folder in args.package_dir:
-        if not Path(folder).is_dir():
-            raise RcmKinError(f"--package-dir {name}={folder}: {folder} is not a folder")
-        if found.setdefault(name, folder) != folder:
-            raise RcmKinError(f"--package-dir: package '{name}' given twice ({found[name]}, {folder})")
-    return found or None
 
 
 def add_report(sub) -> None:
