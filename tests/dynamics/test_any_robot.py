@@ -11,16 +11,14 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.dyn_robots import DRIVE_KEYS, drive_text, ur5_urdf, write_mypsm, write_ur5
 
 import rcm_kin as rk
 from rcm_kin import RcmKinError
 from rcm_kin.control.linearization import linearize, linearize_grid, linearize_pinocchio
-from rcm_kin.dynamics.drive import DEFAULT_PARAMETERS, drive_effort, load_drive_parameters, pwm_to_torque
+from rcm_kin.dynamics.drive import drive_effort, load_drive_parameters, pwm_to_torque
 from rcm_kin.dynamics.state_space import check_state, driven_dynamics
 from rcm_kin.model.loading import urdf_dir
-
-DRIVE_KEYS = ("gear_ratio", "torque_constant", "resistance", "volts_per_pwm", "pwm_sign", "rotor_inertia",
-              "viscous", "coulomb", "coulomb_velocity")
 
 
 def plain_tree(urdf: Path, sidecar: dict) -> tuple[pin.Model, np.ndarray]:
@@ -103,12 +101,7 @@ def test_mtm_shoulder_and_elbow_model_refuses_bad_joints(mtm):
 # --- the UR5: plain Pinocchio computeABADerivatives on the same URDF --------------------------------------
 @pytest.fixture(scope="module")
 def ur5(tmp_path_factory):
-    erd = pytest.importorskip("example_robot_data")
-    urdf = Path(erd.getModelPath("ur_description/urdf/ur5_robot.urdf")) / "ur_description/urdf/ur5_robot.urdf"
-    names = [n for n in pin.buildModelFromUrdf(str(urdf)).names[1:]]
-    folder = tmp_path_factory.mktemp("ur5")
-    (folder / "ur5.toml").write_text(f'robot = "ur5"\nurdf = "{urdf}"\nactuated = {names!r}\n'.replace("'", '"'))
-    return rk.load_robot(folder / "ur5.toml"), urdf
+    return rk.load_robot(write_ur5(tmp_path_factory.mktemp("ur5"))), ur5_urdf()
 
 
 def test_ur5_linear_model_equals_pinocchio_aba_derivatives(ur5):
@@ -149,29 +142,11 @@ def test_ur5_to_ss_labels_are_torques(ur5):
 
 
 # --- a renamed, re-massed PSM copy with its own drive file ------------------------------------------------
-def drive_text(robot: str, joints: dict, limit: float = 100.0) -> str:
-    """A drive file of ``robot`` for the joints ``joints`` ({name: {key: value}}), pwm_limit given."""
-    lines = [f'robot = "{robot}"']
-    for joint, values in joints.items():
-        lines += [f"[{joint}]"] + [f"{k} = {float(v)!r}" for k, v in values.items()] + [f"pwm_limit = {limit!r}"]
-    return "\n".join(lines) + "\n"
-
-
 @pytest.fixture(scope="module")
 def mypsm(tmp_path_factory):
     folder = tmp_path_factory.mktemp("mypsm")
-    text = (urdf_dir() / "psm.urdf").read_text()
-    old = '<mass value="0.875" />'
-    assert text.count(old) == 1
-    (folder / "mypsm.urdf").write_text(text.replace(old, '<mass value="1.5" />'))
-    sidecar = (urdf_dir() / "psm.toml").read_text()
-    sidecar = sidecar.replace('robot = "psm"', 'robot = "mypsm"').replace('urdf = "psm.urdf"', 'urdf = "mypsm.urdf"')
-    (folder / "mypsm.toml").write_text(sidecar.replace('drive = "psm_drive.toml"', 'drive = "mypsm_drive.toml"'))
-    shipped = tomllib.loads(DEFAULT_PARAMETERS.read_text())
-    joints = {j: {k: shipped[j][k] for k in DRIVE_KEYS} for j in ("roll", "pitch", "insertion")}
-    joints["roll"]["gear_ratio"] = 25.0
-    (folder / "mypsm_drive.toml").write_text(drive_text("mypsm", joints))
-    return rk.load_robot(folder / "mypsm.toml"), folder, joints
+    sidecar, joints = write_mypsm(folder)
+    return rk.load_robot(sidecar), folder, joints
 
 
 def test_renamed_psm_copy_runs_on_its_own_physics_and_drive(mypsm, params):

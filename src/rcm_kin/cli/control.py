@@ -17,8 +17,6 @@ from rcm_kin.cli.common import (
     finite,
     floats,
     path_text,
-    psm_robot,
-    require_psm,
 )
 from rcm_kin.control.friction import DEFAULT_RAMP_DEG_S
 from rcm_kin.control.weights import Weights
@@ -27,7 +25,6 @@ from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.hardware import DRIVER_PWM_RANGE, FIRMWARE_PERIOD, HOME_INSERTION
 
 MAX_CHECK_POINTS = 201    # 201 x 201 poses: about a minute of eigenvalues
-NOT_PSM = "the driven-joint dynamics are the PSM's (roll, pitch, insertion), not '{robot}'"
 SHIPPED_LABEL = "calibration psm_drive.toml"
 EPILOG_DYNAMICS = ("examples: rcm-kin dynamics psm --q 0.1 -0.2 0.08 --v 0 0 0 --u 10 -90 0 --json\n"
                    "          rcm-kin dynamics mtm --q 0 20 -30 0 0 0 0 --deg --u 0 1 0 0 0 0 0   (N m: no drive)\n"
@@ -36,6 +33,8 @@ EPILOG_LINEARIZE = ("examples: rcm-kin linearize psm --roll 10 --pitch=-5 --inse
                     "          rcm-kin linearize mtm --q 0 20 -30 0 0 0 0 --deg --json   (torque input: no drive)\n"
                     "          rcm-kin linearize my_arm.toml --q 0.1 0.2 0.3 --params my_arm_drive.toml")
 EPILOG_SCHEDULE = ("examples: rcm-kin schedule psm --out gains\n"
+                   "          rcm-kin schedule psm --grid roll=-20:20:5 pitch=-15:15:3 --out gains\n"
+                   "          rcm-kin schedule my_arm.toml --grid j2=-30:60:7 j3=-20:40:5 --out gains   (JSON, CSV)\n"
                    "          rcm-kin schedule psm --grid=-30,-15,0,15,30:-30,0,30 --gravity-feedforward --out gains\n"
                    "          rcm-kin schedule psm --gravity-feedforward --friction-feedforward --out gains")
 
@@ -85,28 +84,35 @@ def add_model_options(p) -> None:
 
 
 def add_schedule(sub) -> None:
-    p = sub.add_parser("schedule", help="model-based LQR (roll) / LQI (pitch) gain tables, C header, JSON, CSV",
-                       parents=[psm_robot()], epilog=EPILOG_SCHEDULE, formatter_class=RAW)
-    p.add_argument("--grid", default="thesis",
-                   help="'thesis' (roll -20,0,20 x pitch -15,0,15 deg) or ROLLS:PITCHES in degrees, comma-separated "
-                        "(write --grid=-20,0,20:-15,0,15 when it starts with a minus)")
+    p = sub.add_parser("schedule", help="model-based LQR / LQI gain tables over two joints of a robot with a drive "
+                                        "(JSON, CSV; the firmware C header: the bundled PSM only)",
+                       parents=[any_robot()], epilog=EPILOG_SCHEDULE, formatter_class=RAW)
+    p.add_argument("--grid", nargs="+", default=None, metavar="GRID",
+                   help="JOINT=LO:HI:N JOINT=LO:HI:N (degrees; first joint LQR, second LQI); the PSM also takes "
+                        "'thesis' (its default: roll -20,0,20 x pitch -15,0,15 deg) or ROLLS:PITCHES in degrees, "
+                        "comma-separated (write --grid=-20,0,20:-15,0,15 when it starts with a minus)")
     p.add_argument("--insertion", type=finite(unit="m"), default=HOME_INSERTION,
-                   help=f"insertion of the models in m (default {HOME_INSERTION:g})")
+                   help=f"PSM: insertion of the models in m (default {HOME_INSERTION:g})")
+    p.add_argument("--at", nargs="+", metavar="Q", default=None,
+                   help="robots other than the PSM: the pose of the model's joints the other joints are held at "
+                        "(rad, m; default the middle of each range)")
     p.add_argument("--gravity-feedforward", action="store_true",
-                   help="also export the holding-PWM table (u_hold) and rcm_holding_pwm()")
+                   help="PSM firmware header: also export the holding-PWM table (u_hold) and rcm_holding_pwm()")
     p.add_argument("--friction-feedforward", action="store_true",
-                   help="also export the sliding-friction compensation (RCM_FC_* and rcm_friction_feedforward(): "
-                        "-F_c/|k_u| tanh(rdot / ramp) PWM on the reference velocity; needs <math.h>)")
+                   help="PSM firmware header: also export the sliding-friction compensation (RCM_FC_* and "
+                        "rcm_friction_feedforward(): -F_c/|k_u| tanh(rdot / ramp) PWM on the reference velocity; "
+                        "needs <math.h>)")
     p.add_argument("--friction-ramp", type=finite(0, 1e4, "deg/s", open_lo=True), default=DEFAULT_RAMP_DEG_S,
                    help=f"ramp velocity of the friction compensation in deg/s (default {DEFAULT_RAMP_DEG_S:g})")
     for name, value in asdict(Weights()).items():
         p.add_argument("--" + name.replace("_", "-"), dest=name, type=finite(0, 1e6, open_lo=True), default=value,
-                       help=f"Bryson budget, > 0 (default {value:g})")
+                       help=f"Bryson budget, > 0 (default {value:g}; roll: the first joint, pitch: the second)")
     p.add_argument("--check-points", type=count(2, MAX_CHECK_POINTS), default=41,
-                   help=f"stability check on N x N poses across the grid (2 to {MAX_CHECK_POINTS}, default 41)")
-    add_params(p)
+                   help=f"PSM: stability check on N x N poses across the grid (2 to {MAX_CHECK_POINTS}, default 41); "
+                        "other robots: the closed loop at every grid point")
+    add_params(p, "drive parameter TOML of this robot (default: the one its sidecar names; a schedule needs one)")
     p.add_argument("--out", required=True, type=path_text, help="output folder (created)")
-    add_json(p, '{"files", "stable", weakest point}')
+    add_json(p, '{"files", "stable", weakest point, "model", "input_unit"}')
     p.set_defaults(func=cmd_schedule)
 
 
@@ -177,20 +183,48 @@ def cmd_linearize(args) -> None:
 
 
 def cmd_schedule(args) -> None:
+    model = driven_model(args.params, coulomb=False, robot=args.robot)
+    if not model.pwm_input:
+        raise RcmKinError(f"schedule needs a drive: {model.robot} has no drive parameter file (a drive key in its "
+                          "sidecar, or --params); without one its model has torque input")
+    if model.robot == "psm" and tuple(model.joints) == DRIVEN:
+        return _psm_schedule(args, model)
+    if args.gravity_feedforward or args.friction_feedforward:
+        raise RcmKinError("--gravity-feedforward and --friction-feedforward are of the PSM firmware's C header; "
+                          f"the schedule of {model.robot} is written as JSON and CSV")
+    return _joint_schedule(args, model)
+
+
+def _psm_grid(args):
+    """The PSM's roll and pitch grids (deg): 'thesis', ROLLS:PITCHES or roll=LO:HI:N pitch=LO:HI:N."""
+    from rcm_kin.control.gain_schedule import parse_grid
+    from rcm_kin.control.joint_schedule import parse_joint_grid
+
+    words = args.grid or ["thesis"]
+    if len(words) == 1:
+        return parse_grid(words[0])
+    grid = parse_joint_grid(words, args.model)
+    if list(grid) != ["roll", "pitch"]:
+        raise RcmKinError("the PSM's firmware schedule is over roll (first) and pitch (second): "
+                          "--grid roll=LO:HI:N pitch=LO:HI:N")
+    return grid["roll"], grid["pitch"]
+
+
+def _psm_schedule(args, model) -> None:
     from rcm_kin.codegen.firmware_export import write_gain_schedule
-    from rcm_kin.control.gain_schedule import parse_grid, schedule_gains
+    from rcm_kin.control.gain_schedule import schedule_gains
     from rcm_kin.control.stability import stability_survey
 
-    require_psm(args, NOT_PSM)
-    model = driven_model(args.params, coulomb=False)
-    rolls, pitches = parse_grid(args.grid)
+    args.model = model
+    rolls, pitches = _psm_grid(args)
     weights = Weights(**{name: getattr(args, name) for name in asdict(Weights())})
     schedule = schedule_gains(model, rolls, pitches, args.insertion, weights, args.friction_ramp)
     survey = stability_survey(model, schedule, points=args.check_points)
     files = write_gain_schedule(schedule, output_folder(args.out), survey, args.gravity_feedforward,
                                 args.friction_feedforward)
     weakest = survey.weakest()
-    payload = {"files": [str(f) for f in files], "stable": survey.stable, **weakest}
+    payload = {"files": [str(f) for f in files], "stable": survey.stable, **weakest, "model": model.model_label,
+               "input_unit": model.input_unit}
     text = "\n".join([f"wrote {f}" for f in files] + [
         f"{'stable' if survey.stable else 'NOT STABLE'} at every grid point and with frozen interpolated gains on "
         f"{args.check_points}x{args.check_points} poses between ({1 / FIRMWARE_PERIOD:g} Hz firmware loop and "
@@ -199,3 +233,43 @@ def cmd_schedule(args) -> None:
         f"{weakest['pitch_deg']:.1f} deg; least damping {weakest['min_damping']:.3f} at roll "
         f"{weakest['min_damping_roll_deg']:.1f}, pitch {weakest['min_damping_pitch_deg']:.1f} deg"])
     emit(args, payload, text)
+
+
+def _joint_schedule(args, model) -> None:
+    import csv
+    import json
+
+    from rcm_kin.cli.common import check_finite
+    from rcm_kin.control.joint_schedule import joint_schedule, parse_joint_grid, schedule_rows
+
+    if args.grid is None:
+        raise RcmKinError(f"schedule {model.robot} needs --grid JOINT=LO:HI:N JOINT=LO:HI:N over two of "
+                          f"{', '.join(model.joints)} (degrees)")
+    grid = parse_joint_grid(args.grid, model)
+    at = None if args.at is None else _values(model, args.at, "--at", False)
+    weights = Weights(**{name: getattr(args, name) for name in asdict(Weights())})
+    schedule = joint_schedule(model, grid, at, weights)
+    header, rows = schedule_rows(schedule, model.joints)
+    payload = {"robot": model.robot, "joints": list(schedule.joints), "model": model.model_label,
+               "input_unit": model.input_unit, "at": schedule.at.tolist(), "modelled_joints": list(model.joints),
+               f"{schedule.joints[0]}_deg": schedule.first_deg.tolist(),
+               f"{schedule.joints[1]}_deg": schedule.second_deg.tolist(), "k_first": schedule.k_first.tolist(),
+               "k_second": schedule.k_second.tolist(), "u_hold": schedule.u_hold.tolist(),
+               "max_real": schedule.max_real.tolist(), "stable": schedule.stable}
+    check_finite(payload)
+    folder = output_folder(args.out)
+    files = [folder / "schedule.json", folder / "schedule.csv"]
+    files[0].write_text(json.dumps(payload, allow_nan=False, indent=1) + "\n")
+    with files[1].open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(header)
+        writer.writerows([[f"{v:.9g}" for v in row] for row in rows])
+    weakest = schedule.weakest()
+    a, b = schedule.joints
+    text = "\n".join([f"wrote {f}" for f in files] + [
+        f"{'stable' if schedule.stable else 'NOT STABLE'} at every grid point (continuous closed loop of {a} and "
+        f"{b}; the firmware's sampled loop and C header are the PSM's);",
+        f"slowest mode Re = {weakest['max_real']:.4g} 1/s at {a} {weakest[f'{a}_deg']:.1f}, {b} "
+        f"{weakest[f'{b}_deg']:.1f} deg; model: {model.model_label}"])
+    emit(args, {"files": [str(f) for f in files], "stable": schedule.stable, **weakest, "model": model.model_label,
+                "input_unit": model.input_unit}, text)
