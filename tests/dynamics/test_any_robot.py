@@ -222,3 +222,18 @@ def test_massless_urdf_is_refused(tmp_path):
     (tmp_path / "bare.toml").write_text(sidecar.replace('urdf = "mtm.urdf"', 'urdf = "bare.urdf"'))
     with pytest.raises(RcmKinError, match="no link a mass"):
         driven_dynamics(rk.load_robot(tmp_path / "bare.toml"))
+
+
+@pytest.mark.parametrize("coulomb", [True, False])
+def test_rest_form_equals_ad_on_every_model(psm, params, mtm, coulomb):
+    """linearize_grid's closed form at rest and CasADi's AD give the same (A, B, u0), with a drive
+    (the PSM, Coulomb slope included) and without (the MTM)."""
+    rng = np.random.default_rng(13)
+    for model in (driven_dynamics(psm, params, coulomb=coulomb), driven_dynamics(mtm, coulomb=coulomb)):
+        Q = rng.uniform(model.lower, model.upper, (9, len(model.joints))) * 0.9
+        ad, rest = (linearize_grid(model, Q, compile=False, method=m) for m in ("ad", "rest"))
+        np.testing.assert_allclose(rest.u0, ad.u0, rtol=0, atol=1e-12 * max(1.0, np.abs(ad.u0).max()))
+        np.testing.assert_allclose(rest.A, ad.A, rtol=0, atol=1e-10 * max(1.0, np.abs(ad.A).max()))
+        np.testing.assert_allclose(rest.B, ad.B, rtol=0, atol=1e-10 * max(1.0, np.abs(ad.B).max()))
+    with pytest.raises(RcmKinError, match="'ad' or 'rest'"):
+        linearize_grid(model, Q, method="fd")

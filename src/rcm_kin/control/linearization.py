@@ -127,16 +127,29 @@ class LinearizationGrid:
     B: np.ndarray    # (N, 2n, n)
 
 
-def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = True) -> LinearizationGrid:
+def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = True,
+                   method: str | None = None) -> LinearizationGrid:
     """Linear models at (N, n) poses: the compiled gravity and Jacobians
     (:mod:`rcm_kin.symbolic.compiled`) mapped over chunks of ``chunk`` poses. ``compile=False``
     maps the interpreted functions (the same values to rounding, about 45 us a pose against 5):
-    for a model used once on a few poses, whose compilation would cost seconds."""
+    for a model used once on a few poses, whose compilation would cost seconds.
+
+    ``method``: ``"ad"``, CasADi's Jacobians of ``forward`` at ``(x0, u0)``; ``"rest"``, the
+    closed form at an equilibrium, ``A = [[0, I], [-M^-1 dg/dq, -M^-1 D]]``, ``B = [0; M^-1 K]``
+    (``D`` the drive's damping and Coulomb slope at rest, ``K`` its gains; exact at rest, where
+    the applied input cancels gravity and the Coriolis terms are quadratic in ``v``), from the
+    compiled ``(g, M, dg/dq)`` and batched NumPy: cheaper for many joints. Default: ``"ad"`` for a
+    model with a drive (the PSM's tables, bit for bit as before), ``"rest"`` for a torque-input model."""
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     n = len(model.joints)
     if Q.ndim != 2 or Q.shape[1] != n or not np.all(np.isfinite(Q)):
         raise RcmKinError(f"poses must be finite rows of {n} values ({', '.join(model.joints)}), got shape {Q.shape}")
+    method = method or ("ad" if model.pwm_input else "rest")
+    if method not in ("ad", "rest"):
+        raise RcmKinError(f"`method` is 'ad' or 'rest', got {method!r}", parameter="method")
     check_in_range(model, Q)
+    if method == "rest":
+        return _rest_grid(model, Q, chunk, compile)
     gravity, jacobians = _compiled(model) if compile else (model.gravity, model.jacobians)
     (g,) = map_points(gravity, Q, chunk=chunk)
     u0 = g / model.drive.input_gain
@@ -144,10 +157,31 @@ def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = 
     return LinearizationGrid(Q, u0, A, B)
 
 
+def _rest_grid(model: DrivenDynamics, Q: np.ndarray, chunk: int, compile: bool) -> LinearizationGrid:
+    """:func:`linearize_grid` by the closed form at rest."""
+    n, drive = len(model.joints), model.drive
+    g, M, dg = map_points(_compiled_rest(model) if compile else model.rest, Q, chunk=chunk)
+    damping = drive.damping + (drive.coulomb / drive.coulomb_velocity if model.coulomb else 0.0)
+    Minv = np.linalg.inv(M)
+    A = np.zeros((len(Q), 2 * n, 2 * n))
+    A[:, :n, n:] = np.eye(n)
+    A[:, n:, :n] = -Minv @ dg
+    A[:, n:, n:] = -Minv * damping
+    B = np.zeros((len(Q), 2 * n, n))
+    B[:, n:] = Minv * drive.input_gain
+    return LinearizationGrid(Q, g / drive.input_gain, A, B)
+
+
 @functools.lru_cache(maxsize=8)
 def _compiled(model: DrivenDynamics) -> tuple[ca.Function, ca.Function]:
     """Holding gravity and (A, B), compiled (built once, then loaded from the cache)."""
     return compiled(model.gravity), compiled(model.jacobians)
+
+
+@functools.lru_cache(maxsize=8)
+def _compiled_rest(model: DrivenDynamics) -> ca.Function:
+    """``q -> (g, M, dg/dq)``, compiled (built once, then loaded from the cache)."""
+    return compiled(model.rest)
 
 
 def linearize_finite_differences(model: DrivenDynamics, x, u, step: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:

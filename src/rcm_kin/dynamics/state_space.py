@@ -91,6 +91,7 @@ class DrivenDynamics:
     input_unit: str = PWM_UNIT     # "PWM [counts]" or "torque [N m / N]" (TORQUE_UNIT)
     model_label: str = ""          # which model: "calibration <file>" or "CAD (URDF inertias)"
     robot: str = ""                # the robot's name
+    rest: ca.Function | None = None   # q -> (g, M, dg/dq): what the model is linearised from at rest
 
     @property
     def state(self) -> list[str]:
@@ -184,6 +185,8 @@ def driven_dynamics(robot: Robot, params: DriveParameters | None = None, coulomb
         mass_matrix=ca.Function("mass_matrix", [q], [M], ["q"], ["M"]),
         bias=ca.Function("bias", [q, v], [bias], ["q", "v"], ["h"]),
         gravity=ca.Function("gravity", [q], [g_rigid + g_offsets], ["q"], ["g"]),
+        rest=ca.Function("rest", [q], [g_rigid + g_offsets, ca.substitute(M, v, zero),
+                                       ca.jacobian(g_rigid + g_offsets, q)], ["q"], ["g", "M", "dg"]),
         units=tuple("m" if robot.joint_kind(j) == "prismatic" else "rad" for j in joints),
         input_unit=PWM_UNIT if params is not None else TORQUE_UNIT, model_label=model_label(params),
         robot=robot.name)
