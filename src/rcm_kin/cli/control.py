@@ -1,4 +1,5 @@
-"""``dynamics``, ``linearize``, ``schedule``: the PSM's driven-joint model and its gain schedule."""
+"""``dynamics``, ``linearize``, ``schedule``: any robot's joint model (PWM through its drive, torque without) and
+gain schedules (the firmware C header: the bundled PSM's)."""
 
 from __future__ import annotations
 
@@ -35,17 +36,16 @@ EPILOG_LINEARIZE = ("examples: rcm-kin linearize psm --roll 10 --pitch=-5 --inse
 EPILOG_SCHEDULE = ("examples: rcm-kin schedule psm --out gains\n"
                    "          rcm-kin schedule psm --grid roll=-20:20:5 pitch=-15:15:3 --out gains\n"
                    "          rcm-kin schedule my_arm.toml --grid j2=-30:60:7 j3=-20:40:5 --out gains   (JSON, CSV)\n"
-                   "          rcm-kin schedule psm --grid=-30,-15,0,15,30:-30,0,30 --gravity-feedforward --out gains\n"
                    "          rcm-kin schedule psm --gravity-feedforward --friction-feedforward --out gains")
 
 
 def add_dynamics(sub) -> None:
     p = sub.add_parser("dynamics", help="joint accelerations of a robot's model for a state and input (PWM through "
-                                        "its drive, joint torque without one)",
-                       parents=[any_robot()], epilog=EPILOG_DYNAMICS, formatter_class=RAW)
+                       "its drive, joint torque without one)", parents=[any_robot()], epilog=EPILOG_DYNAMICS,
+                       formatter_class=RAW)
     p.add_argument("--q", nargs="+", required=True, metavar="Q",
                    help="the model's joint positions, rad or m (--deg: degrees); PSM: roll, pitch, insertion")
-    p.add_argument("--v", nargs="+", default=None, metavar="V", help="their rates (rad/s, m/s; default 0)")
+    p.add_argument("--v", nargs="+", metavar="V", help="their rates (rad/s, m/s; default 0)")
     p.add_argument("--u", nargs="+", default=None, metavar="U",
                    help=f"inputs: PWM counts of the drivers, hardware sign (|u| <= {DRIVER_PWM_RANGE:g}), where the "
                         "robot has a drive; joint torques N m (N) where it has none (default 0)")
@@ -56,17 +56,15 @@ def add_dynamics(sub) -> None:
 
 def add_linearize(sub) -> None:
     p = sub.add_parser("linearize", help="linear model (A, B, C, D) of a robot's joints at a held pose (PWM input "
-                                         "through its drive, joint torque without one)",
-                       parents=[any_robot()], epilog=EPILOG_LINEARIZE, formatter_class=RAW)
+                       "through its drive, joint torque without one)", parents=[any_robot()], epilog=EPILOG_LINEARIZE,
+                       formatter_class=RAW)
     p.add_argument("--q", nargs="+", metavar="Q",
                    help="the pose of the model's joints, rad or m (--deg: degrees); instead of --roll/--pitch")
     p.add_argument("--roll", type=finite(unit="deg"), help="PSM: roll angle in degrees")
     p.add_argument("--pitch", type=finite(unit="deg"), help="PSM: pitch angle in degrees")
-    p.add_argument("--insertion", type=finite(unit="m"), default=None,
-                   help=f"PSM: insertion in m (default {HOME_INSERTION:g})")
+    p.add_argument("--insertion", type=finite(unit="m"), help=f"PSM: insertion in m (default {HOME_INSERTION:g})")
     add_model_options(p)
-    add_json(p, '{"x0", "u0", "A", "B", "C", "D", "state", "input", "model", "input_unit"}: SI state [q; v]; '
-                'PWM input (a drive) or N m / N')
+    add_json(p, '{"x0", "u0", "A", "B", "C", "D", "state", "input", "model", "input_unit"}: SI state [q; v]')
     p.set_defaults(func=cmd_linearize)
 
 
@@ -76,26 +74,23 @@ def add_model_options(p) -> None:
                    help="the joints to model where the robot has no drive (default all actuated; the others "
                         "held at 0); with a drive the model is over its joints")
     p.add_argument("--deg", action="store_true", help="revolute positions (and rates) in degrees (deg/s)")
-    p.add_argument("--no-coulomb", action="store_true",
-                   help="leave the smoothed Coulomb friction of the drive out (its slope at rest is set by the "
-                        "smoothing width)")
+    p.add_argument("--no-coulomb", action="store_true", help="leave the drive's smoothed Coulomb friction out")
     add_params(p, "drive parameter TOML of this robot (default: the one its sidecar names; none: its URDF "
                   "inertias, torque input)")
 
 
 def add_schedule(sub) -> None:
     p = sub.add_parser("schedule", help="model-based LQR / LQI gain tables over two joints of a robot with a drive "
-                                        "(JSON, CSV; the firmware C header: the bundled PSM only)",
-                       parents=[any_robot()], epilog=EPILOG_SCHEDULE, formatter_class=RAW)
+                       "(JSON, CSV; the firmware C header: the bundled PSM only)", parents=[any_robot()],
+                       epilog=EPILOG_SCHEDULE, formatter_class=RAW)
     p.add_argument("--grid", nargs="+", default=None, metavar="GRID",
                    help="JOINT=LO:HI:N JOINT=LO:HI:N (degrees; first joint LQR, second LQI); the PSM also takes "
                         "'thesis' (its default: roll -20,0,20 x pitch -15,0,15 deg) or ROLLS:PITCHES in degrees, "
                         "comma-separated (write --grid=-20,0,20:-15,0,15 when it starts with a minus)")
     p.add_argument("--insertion", type=finite(unit="m"), default=HOME_INSERTION,
                    help=f"PSM: insertion of the models in m (default {HOME_INSERTION:g})")
-    p.add_argument("--at", nargs="+", metavar="Q", default=None,
-                   help="robots other than the PSM: the pose of the model's joints the other joints are held at "
-                        "(rad, m; default the middle of each range)")
+    p.add_argument("--at", nargs="+", metavar="Q", help="not the PSM: the pose (rad, m) the model's other joints "
+                   "are held at (default mid-range)")
     p.add_argument("--gravity-feedforward", action="store_true",
                    help="PSM firmware header: also export the holding-PWM table (u_hold) and rcm_holding_pwm()")
     p.add_argument("--friction-feedforward", action="store_true",
@@ -236,36 +231,16 @@ def _psm_schedule(args, model) -> None:
 
 
 def _joint_schedule(args, model) -> None:
-    import csv
-    import json
-
-    from rcm_kin.cli.common import check_finite
-    from rcm_kin.control.joint_schedule import joint_schedule, parse_joint_grid, schedule_rows
+    from rcm_kin.control.joint_schedule import joint_schedule, parse_joint_grid, write_joint_schedule
 
     if args.grid is None:
         raise RcmKinError(f"schedule {model.robot} needs --grid JOINT=LO:HI:N JOINT=LO:HI:N over two of "
                           f"{', '.join(model.joints)} (degrees)")
     grid = parse_joint_grid(args.grid, model)
     at = None if args.at is None else _values(model, args.at, "--at", False)
-    weights = Weights(**{name: getattr(args, name) for name in asdict(Weights())})
-    schedule = joint_schedule(model, grid, at, weights)
-    header, rows = schedule_rows(schedule, model.joints)
-    payload = {"robot": model.robot, "joints": list(schedule.joints), "model": model.model_label,
-               "input_unit": model.input_unit, "at": schedule.at.tolist(), "modelled_joints": list(model.joints),
-               f"{schedule.joints[0]}_deg": schedule.first_deg.tolist(),
-               f"{schedule.joints[1]}_deg": schedule.second_deg.tolist(), "k_first": schedule.k_first.tolist(),
-               "k_second": schedule.k_second.tolist(), "u_hold": schedule.u_hold.tolist(),
-               "max_real": schedule.max_real.tolist(), "stable": schedule.stable}
-    check_finite(payload)
-    folder = output_folder(args.out)
-    files = [folder / "schedule.json", folder / "schedule.csv"]
-    files[0].write_text(json.dumps(payload, allow_nan=False, indent=1) + "\n")
-    with files[1].open("w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(header)
-        writer.writerows([[f"{v:.9g}" for v in row] for row in rows])
-    weakest = schedule.weakest()
-    a, b = schedule.joints
+    schedule = joint_schedule(model, grid, at, Weights(**{name: getattr(args, name) for name in asdict(Weights())}))
+    files = write_joint_schedule(schedule, model, args.out)
+    weakest, (a, b) = schedule.weakest(), schedule.joints
     text = "\n".join([f"wrote {f}" for f in files] + [
         f"{'stable' if schedule.stable else 'NOT STABLE'} at every grid point (continuous closed loop of {a} and "
         f"{b}; the firmware's sampled loop and C header are the PSM's);",

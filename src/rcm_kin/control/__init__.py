@@ -3,7 +3,7 @@
 import lazy_loader
 
 __all__ = [
-    "GainSchedule", "JointSchedule", "Linearization", "LinearizationGrid", "Weights", "friction_compensation",
+    "GainSchedule", "Linearization", "LinearizationGrid", "Weights", "friction_compensation",
     "joint_schedule", "linearize", "linearize_grid", "schedule_gains", "scheduled_gains", "stability_survey",
     "zero_order_hold",
 ]
@@ -13,7 +13,7 @@ __getattr__, __dir__, _ = lazy_loader.attach(
     submod_attrs={
         "linearization": ["Linearization", "LinearizationGrid", "linearize", "linearize_grid", "zero_order_hold"],
         "gain_schedule": ["GainSchedule", "schedule_gains", "scheduled_gains"],
-        "joint_schedule": ["JointSchedule", "joint_schedule"],
+        "joint_schedule": ["joint_schedule"],
         "weights": ["Weights"],
         "stability": ["stability_survey"],
         "friction": ["friction_compensation"],

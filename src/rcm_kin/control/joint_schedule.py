@@ -18,7 +18,10 @@ the velocity filter and the C header are the PSM firmware's and stay with
 
 from __future__ import annotations
 
+import csv
+import json
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -26,7 +29,7 @@ from rcm_kin.control.gain_schedule import check_grid, lqr_axis
 from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.weights import Weights
 from rcm_kin.dynamics.state_space import DrivenDynamics
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import NonFiniteResultError, RcmKinError, output_folder
 
 MAX_GRID_POINTS = 201     # per scheduling joint
 
@@ -146,3 +149,34 @@ def schedule_rows(schedule: JointSchedule, joints: tuple[str, ...]) -> tuple[lis
             rows.append([float(f), float(s), *schedule.k_first[j, i].tolist(), *schedule.k_second[j, i].tolist(),
                          float(schedule.max_real[j, i]), *schedule.u_hold[j, i].tolist()])
     return header, rows
+
+
+def schedule_payload(schedule: JointSchedule, model: DrivenDynamics) -> dict:
+    """The schedule as JSON-ready data: its joints, grids, tables, the model it was designed on."""
+    a, b = schedule.joints
+    return {"robot": model.robot, "joints": [a, b], "model": model.model_label, "input_unit": model.input_unit,
+            "modelled_joints": list(model.joints), "at": schedule.at.tolist(), f"{a}_deg": schedule.first_deg.tolist(),
+            f"{b}_deg": schedule.second_deg.tolist(), "k_first": schedule.k_first.tolist(),
+            "k_second": schedule.k_second.tolist(), "u_hold": schedule.u_hold.tolist(),
+            "max_real": schedule.max_real.tolist(), "stable": schedule.stable}
+
+
+def write_joint_schedule(schedule: JointSchedule, model: DrivenDynamics, folder: str | Path) -> list[Path]:
+    """``schedule.json`` (:func:`schedule_payload`) and ``schedule.csv`` (:func:`schedule_rows`) in
+    ``folder`` (created); nothing is written, not even the folder, when a value is not finite."""
+    payload = schedule_payload(schedule, model)
+    header, rows = schedule_rows(schedule, model.joints)
+    if not np.all(np.isfinite(np.array(rows, dtype=float))):
+        raise NonFiniteResultError(f"the gain schedule of {model.robot} is not finite: check its drive parameters",
+                                   where="schedule")
+    folder = output_folder(folder)
+    files = [folder / "schedule.json", folder / "schedule.csv"]
+    try:
+        files[0].write_text(json.dumps(payload, allow_nan=False, indent=1) + "\n")
+        with files[1].open("w", newline="") as fh:
+            writer = csv.writer(fh)
+            writer.writerow(header)
+            writer.writerows([[f"{v:.9g}" for v in row] for row in rows])
+    except OSError as exc:
+        raise RcmKinError(f"cannot write the gain schedule in {folder}: {exc.strerror}") from None
+    return files

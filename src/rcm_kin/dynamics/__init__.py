@@ -4,16 +4,15 @@ model of any robot's joints, PWM input through its drive or torque input on its 
 import lazy_loader
 
 __all__ = [
-    "AxisFriction", "DriveEffort", "DriveParameters", "DrivenDynamics", "check_drive", "drive_effort",
-    "driven_dynamics", "holding_pwm", "load_drive_parameters", "model_label", "pwm_to_torque", "robot_drive",
-    "simulate_axis", "write_parameters",
+    "AxisFriction", "DriveEffort", "DriveParameters", "DrivenDynamics", "drive_effort", "driven_dynamics",
+    "holding_pwm", "load_drive_parameters", "model_label", "robot_drive", "simulate_axis", "write_parameters",
 ]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,
     submod_attrs={
         "drive": ["DriveParameters", "DriveEffort", "load_drive_parameters", "write_parameters", "drive_effort",
-                  "check_drive", "robot_drive", "model_label", "pwm_to_torque"],
+                  "robot_drive", "model_label"],
         "state_space": ["DrivenDynamics", "driven_dynamics", "holding_pwm"],
         "stick_slip": ["simulate_axis"],
         "axis_friction": ["AxisFriction"],
