@@ -14,7 +14,7 @@ from oracles.dyn_robots import DRIVE_KEYS, drive_text, write_mypsm, write_ur5
 
 import rcm_kin as rk
 from rcm_kin.cli import main
-from rcm_kin.control.joint_schedule import axis_gains, joint_schedule, parse_joint_grid
+from rcm_kin.control.joint_schedule import axis_gains, parse_joint_grid, schedule_joints
 from rcm_kin.control.linearization import linearize
 from rcm_kin.control.weights import Weights
 from rcm_kin.dynamics.drive import DEFAULT_PARAMETERS
@@ -147,7 +147,7 @@ def test_joint_grid_is_checked(mtm, tmp_path):
         with pytest.raises(RcmKinError, match=message):
             parse_joint_grid(words, model)
     with pytest.raises(RcmKinError, match="needs a drive"):
-        joint_schedule(driven_dynamics(mtm, coulomb=False), {"j2": np.array([0, 10]), "j3": np.array([0, 10])})
+        schedule_joints(driven_dynamics(mtm, coulomb=False), {"j2": np.array([0, 10]), "j3": np.array([0, 10])})
 
 
 def test_ur5_linearize_by_sidecar_path(capsys, tmp_path):

@@ -231,14 +231,14 @@ def _psm_schedule(args, model) -> None:
 
 
 def _joint_schedule(args, model) -> None:
-    from rcm_kin.control.joint_schedule import joint_schedule, parse_joint_grid, write_joint_schedule
+    from rcm_kin.control.joint_schedule import parse_joint_grid, schedule_joints, write_joint_schedule
 
     if args.grid is None:
         raise RcmKinError(f"schedule {model.robot} needs --grid JOINT=LO:HI:N JOINT=LO:HI:N over two of "
                           f"{', '.join(model.joints)} (degrees)")
     grid = parse_joint_grid(args.grid, model)
     at = None if args.at is None else _values(model, args.at, "--at", False)
-    schedule = joint_schedule(model, grid, at, Weights(**{name: getattr(args, name) for name in asdict(Weights())}))
+    schedule = schedule_joints(model, grid, at, Weights(**{name: getattr(args, name) for name in asdict(Weights())}))
     files = write_joint_schedule(schedule, model, args.out)
     weakest, (a, b) = schedule.weakest(), schedule.joints
     text = "\n".join([f"wrote {f}" for f in files] + [

@@ -111,7 +111,7 @@ def pair_closed_loop(A: np.ndarray, B: np.ndarray, axes: tuple[int, int], k_firs
     return a_aug - np.vstack([b, np.zeros((1, 2))]) @ K
 
 
-def joint_schedule(model: DrivenDynamics, grid: dict[str, np.ndarray], at=None,
+def schedule_joints(model: DrivenDynamics, grid: dict[str, np.ndarray], at=None,
                    weights: Weights | None = None) -> JointSchedule:
     """Design the gain tables of ``model`` (a PWM-input model without Coulomb friction) over the two
     scheduling joints of ``grid`` ({joint: degrees}, first LQR, second LQI), the other modelled
