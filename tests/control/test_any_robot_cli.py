@@ -157,3 +157,17 @@ def test_ur5_linearize_by_sidecar_path(capsys, tmp_path):
     assert lin["model"] == "CAD (URDF inertias)" and len(lin["A"]) == 12
     one_line_error(capsys, ["linearize", tmp_path / "ur5.toml", "--roll", "0", "--pitch", "0"], "give the pose of")
     one_line_error(capsys, ["dynamics", tmp_path / "ur5.toml", "--q", "0", "1"], "--q takes 6 values")
+
+
+def test_massless_urdf_is_refused_in_one_line(capsys, tmp_path, monkeypatch):
+    import re
+
+    text = (urdf_dir() / "mtm.urdf").read_text()
+    (tmp_path / "bare.urdf").write_text(re.sub(r"<inertial>.*?</inertial>", "", text, flags=re.S))
+    sidecar = (urdf_dir() / "mtm.toml").read_text().replace('robot = "mtm"', 'robot = "bare"')
+    (tmp_path / "bare.toml").write_text(sidecar.replace('urdf = "mtm.urdf"', 'urdf = "bare.urdf"'))
+    monkeypatch.chdir(tmp_path)
+    for argv in (["linearize", "bare.toml", "--q", "0"], ["dynamics", "bare.toml", "--q", "0"],
+                 ["schedule", "bare.toml", "--grid", "j2=0:10:2", "j3=0:10:2", "--out", "g"]):
+        one_line_error(capsys, argv, "gives no link a mass")
+    assert not (tmp_path / "g").exists()

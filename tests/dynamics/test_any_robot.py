@@ -237,3 +237,14 @@ def test_rest_form_equals_ad_on_every_model(psm, params, mtm, coulomb):
         np.testing.assert_allclose(rest.B, ad.B, rtol=0, atol=1e-10 * max(1.0, np.abs(ad.B).max()))
     with pytest.raises(RcmKinError, match="'ad' or 'rest'"):
         linearize_grid(model, Q, method="fd")
+
+
+def test_drive_file_of_another_robot_round_trips_with_its_pwm_limits(tmp_path):
+    from rcm_kin.dynamics.drive import write_parameters
+
+    values = {k: 1.0 for k in DRIVE_KEYS}
+    (tmp_path / "a.toml").write_text(drive_text("arm", {"shoulder": values, "elbow": values}, limit=180.0))
+    params = load_drive_parameters(tmp_path / "a.toml")
+    again = load_drive_parameters(write_parameters(params, tmp_path / "b.toml"))
+    assert again.joints == params.joints and again.driven == ("shoulder", "elbow") and again.robot == "arm"
+    assert "pwm_limit = 180.0" in (tmp_path / "b.toml").read_text()
