@@ -202,13 +202,13 @@ def _driven_closure(robot: Robot, q_fixed: np.ndarray, q, joints: tuple[str, ...
 
 
 def driven_gravity_function(robot: Robot, offsets: dict, q_fixed=None, joints=None) -> ca.Function:
-    """``q -> g(q)`` (N m, N) of the modelled joints (``joints``; default: the robot's drive's,
-    else all actuated) with the first-moment ``offsets`` ({link: (3,) kg m}, e.g.
-    ``DriveParameters.gravity_offsets``): the ``gravity`` of :func:`driven_dynamics` without
-    building the rest of the model."""
-    if joints is None:
-        drive = robot_drive(robot)
-        joints = drive.driven if drive is not None else None
+    """``q -> g(q)`` (N m, N) of the modelled joints ``joints`` with the first-moment ``offsets``
+    ({link: (3,) kg m}, e.g. ``DriveParameters.gravity_offsets``): the ``gravity`` of
+    :func:`driven_dynamics` without building the rest of the model. ``joints`` None: the PSM's
+    driven joints where the robot has them all (what the callers of before expect), else all
+    actuated; give ``joints`` (e.g. ``params.driven``) to be explicit."""
+    if joints is None and set(DRIVEN) <= set(robot.actuated):
+        joints = DRIVEN                       # compatibility default (statics maps): pass joints instead
     joints = modelled_joints(robot, None, joints)
     q_fixed = robot.check_q(np.zeros(robot.nq) if q_fixed is None else q_fixed)
     tree = tree_joints(robot.tree)
