@@ -188,7 +188,8 @@ def test_header_compiles_and_matches_python(tmp_path, design):
 def test_cli_dynamics_and_linearize_contracts(capsys, design):
     assert main(["linearize", "psm", "--roll", "10", "--pitch=-5", "--insertion", "0.06", "--json"]) == 0
     lin = json.loads(capsys.readouterr().out)
-    assert set(lin) == {"x0", "u0", "A", "B", "C", "D", "state", "input"}
+    assert set(lin) == {"x0", "u0", "A", "B", "C", "D", "state", "input", "model", "input_unit"}
+    assert lin["model"] == "calibration psm_drive.toml" and lin["input_unit"] == "PWM [counts]"
     x0, u0, A = np.array(lin["x0"]), np.array(lin["u0"]), np.array(lin["A"])
     np.testing.assert_allclose(x0[:3], [np.radians(10), np.radians(-5), 0.06])
 
@@ -224,7 +225,7 @@ def test_cli_schedule_writes_the_contract_files(tmp_path, capsys):
     assert (out / "gain_schedule.h").read_text().count("rcm_gain_schedule(double roll_deg") == 1
     assert len((out / "gains.csv").read_text().splitlines()) == 10
     assert main(["schedule", "mtm", "--out", str(out)]) == 2
-    assert "PSM" in capsys.readouterr().err
+    assert "schedule needs a drive" in capsys.readouterr().err
 
 
 def test_thesis_gains_on_the_thesis_roll_model_by_python_control():

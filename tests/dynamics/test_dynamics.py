@@ -166,6 +166,11 @@ def test_bad_poses_are_refused(model):
         linearize_grid(model, np.zeros((4, 2)))
 
 
-def test_mtm_has_no_drive_model(mtm):
-    with pytest.raises(RcmKinError, match="drive model is the PSM's"):
-        driven_dynamics(mtm)
+def test_mtm_has_a_torque_model_and_refuses_the_psm_drive(mtm, params):
+    """The MTM has no drive file: its model has torque input over all its actuated joints; the
+    PSM's calibration applied to it is a one-line error."""
+    model = driven_dynamics(mtm)
+    assert model.joints == mtm.actuated and model.input_unit.startswith("torque") and not model.coulomb
+    assert model.model_label == "CAD (URDF inertias)" and model.inputs[0] == "tau_j1"
+    with pytest.raises(RcmKinError, match="describes robot 'psm', not 'mtm'"):
+        driven_dynamics(mtm, params)

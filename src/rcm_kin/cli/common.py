@@ -170,12 +170,15 @@ def joint_values(robot, args) -> np.ndarray:
     return robot.check_limits(robot.check_q(q, allow_short=True))
 
 
-def driven_model(params: str | None, coulomb: bool):
-    """The PSM's driven-joint dynamics with the drive parameter TOML ``params`` (None: shipped)."""
+def driven_model(params: str | None, coulomb: bool, robot: str = "psm", joints=None):
+    """The driven-joint dynamics of ``robot`` (a name or a sidecar path; default the bundled PSM)
+    with the drive parameter TOML ``params`` (None: the robot's own drive, else its URDF inertias
+    with torque input over ``joints``, default all actuated)."""
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.dynamics.state_space import driven_dynamics
 
-    return driven_dynamics(load_robot("psm"), load_drive_parameters(params), coulomb=coulomb)
+    drive = load_drive_parameters(params) if params is not None else None
+    return driven_dynamics(load_robot(robot), drive, coulomb=coulomb, joints=joints)
 
 
 def check_finite(payload: dict) -> None:

@@ -1,11 +1,13 @@
-"""Linear models of the driven joints at equilibria: ``dx = A dx + B du`` about ``(x0, u0)``.
+"""Linear models of a robot's modelled joints at equilibria: ``dx = A dx + B du`` about ``(x0, u0)``.
 
-``x0 = [q; 0]`` is a pose held still and ``u0`` the PWM that holds it (gravity over the drive
-gain), so ``forward(x0, u0) = 0``. ``A = d xdot / dx`` and ``B = d xdot / du`` come from CasADi's
+``x0 = [q; 0]`` is a pose held still and ``u0`` the input that holds it (gravity over the drive
+gain: PWM counts where the robot has a drive, the joint torques where it has none), so
+``forward(x0, u0) = 0``. ``A = d xdot / dx`` and ``B = d xdot / du`` come from CasADi's
 automatic differentiation of :mod:`rcm_kin.dynamics.state_space`; :func:`linearize_pinocchio`
 gets the same matrices from Pinocchio's analytic ABA derivatives of the open tree projected
 through the loop closure, and :func:`linearize_finite_differences` by central differences, as
-independent checks. State ``[q; v]`` in SI (rad, m, rad/s, m/s), input PWM counts, output ``q``.
+independent checks. State ``[q; v]`` in SI (rad, m, rad/s, m/s), input PWM counts or N m / N,
+output ``q``.
 :meth:`Linearization.to_ss` hands a model to python-control; :func:`zero_order_hold` samples
 one with the input held.
 """
@@ -20,8 +22,7 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.dynamics.drive import DRIVEN, DRIVEN_UNIT
-from rcm_kin.dynamics.state_space import DrivenDynamics, holding_pwm
+from rcm_kin.dynamics.state_space import PWM_UNIT, DrivenDynamics, holding_pwm
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
@@ -35,31 +36,38 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class Linearization:
-    """A linear model about an equilibrium (SI state, PWM input) of the driven joints."""
+    """A linear model about an equilibrium (SI state; PWM or torque input) of n modelled joints."""
 
-    x0: np.ndarray     # (6,) [q; v], v = 0
-    u0: np.ndarray     # (3,) holding PWM
-    A: np.ndarray      # (6, 6)
-    B: np.ndarray      # (6, 3)
-    C: np.ndarray      # (3, 6): the joint positions
-    D: np.ndarray      # (3, 3)
+    x0: np.ndarray     # (2n,) [q; v], v = 0
+    u0: np.ndarray     # (n,) holding input (PWM counts, or N m / N)
+    A: np.ndarray      # (2n, 2n)
+    B: np.ndarray      # (2n, n)
+    C: np.ndarray      # (n, 2n): the joint positions
+    D: np.ndarray      # (n, n)
     state: list[str]
     inputs: list[str]
+    joints: tuple[str, ...] = ("roll", "pitch", "insertion")
+    units: tuple[str, ...] = ("rad", "rad", "m")          # per joint position
+    input_labels: tuple[str, ...] = ("roll PWM [counts]", "pitch PWM [counts]", "insertion PWM [counts]")
+    input_unit: str = PWM_UNIT
+    model: str = ""                                        # which model: calibration <file> or CAD
 
     def as_dict(self) -> dict:
+        """The model as JSON-ready lists (keys x0, u0, A, B, C, D, state, input)."""
         return {"x0": self.x0.tolist(), "u0": self.u0.tolist(), "A": self.A.tolist(), "B": self.B.tolist(),
                 "C": self.C.tolist(), "D": self.D.tolist(), "state": self.state, "input": self.inputs}
 
     def to_ss(self) -> control.StateSpace:
         """The model as a python-control ``StateSpace`` in the deviations from ``(x0, u0)``, with
         labelled signals: states ``roll [rad]`` .. ``insertion rate [m/s]``, inputs
-        ``roll PWM [counts]`` .., outputs the joint positions ``roll [rad]`` .. ``insertion [m]``."""
+        ``roll PWM [counts]`` .. (a drive) or ``j2 torque [N m]`` .. (torque input), outputs the
+        joint positions ``roll [rad]`` .. ``insertion [m]``."""
         import control  # python-control costs ~120 MB and a second to import: only when asked for
 
-        positions = [f"{j} [{DRIVEN_UNIT[j]}]" for j in DRIVEN]
-        rates = [f"{j} rate [{DRIVEN_UNIT[j]}/s]" for j in DRIVEN]
+        positions = [f"{j} [{u}]" for j, u in zip(self.joints, self.units)]
+        rates = [f"{j} rate [{u}/s]" for j, u in zip(self.joints, self.units)]
         return control.ss(self.A, self.B, self.C, self.D, states=positions + rates,
-                          inputs=[f"{j} PWM [counts]" for j in DRIVEN], outputs=positions)
+                          inputs=list(self.input_labels), outputs=positions)
 
 
 def zero_order_hold(A: np.ndarray, B: np.ndarray, period: float) -> tuple[np.ndarray, np.ndarray]:
@@ -79,51 +87,69 @@ def zero_order_hold(A: np.ndarray, B: np.ndarray, period: float) -> tuple[np.nda
 
 
 def equilibrium(model: DrivenDynamics, q) -> tuple[np.ndarray, np.ndarray]:
-    """``(x0, u0)``: the pose ``q`` (rad, rad, m) at rest and its holding PWM."""
+    """``(x0, u0)``: the pose ``q`` (rad, m; the model's joints) at rest and its holding input."""
     q = np.asarray(q, dtype=float).ravel()
-    if q.shape != (3,) or not np.all(np.isfinite(q)):
-        raise RcmKinError(f"an equilibrium pose is 3 finite values ({', '.join(DRIVEN)})")
+    n = len(model.joints)
+    if q.shape != (n,) or not np.all(np.isfinite(q)):
+        raise RcmKinError(f"an equilibrium pose is {n} finite values ({', '.join(model.joints)})")
     check_in_range(model, q[None])
-    return np.r_[q, np.zeros(3)], holding_pwm(model, q)
+    return np.r_[q, np.zeros(n)], holding_pwm(model, q)
 
 
 def check_in_range(model: DrivenDynamics, Q: np.ndarray, tol: float = 1e-9) -> None:
-    """Refuse poses (N, 3) or (3,) outside the driven joints' limits: the model means nothing there."""
+    """Refuse poses (N, n) or (n,) outside the modelled joints' limits: the model means nothing there."""
     Q = np.atleast_2d(Q)
     outside = np.any((Q < model.lower - tol) | (Q > model.upper + tol), axis=0)
     if np.any(outside):
         limits = ", ".join(f"{j} {lo:.4g} to {hi:.4g}" for j, lo, hi, o in
-                           zip(DRIVEN, model.lower, model.upper, outside) if o)
+                           zip(model.joints, model.lower, model.upper, outside) if o)
         raise RcmKinError(f"pose outside the joint range ({limits}; rad, m)")
 
 
 def linearize(model: DrivenDynamics, q) -> Linearization:
-    """The linear model at pose ``q`` (rad, rad, m), by CasADi AD."""
+    """The linear model at pose ``q`` (rad, m; the model's joints), by CasADi AD."""
     x0, u0 = equilibrium(model, q)
     A, B = (np.array(m) for m in model.jacobians(x0, u0))
-    C = np.hstack([np.eye(3), np.zeros((3, 3))])
-    return Linearization(x0, u0, A, B, C, np.zeros((3, 3)), model.state, model.inputs)
+    n = len(model.joints)
+    C = np.hstack([np.eye(n), np.zeros((n, n))])
+    return Linearization(x0, u0, A, B, C, np.zeros((n, n)), model.state, model.inputs, tuple(model.joints),
+                         tuple(model.units), tuple(model.input_label(k) for k in range(n)), model.input_unit,
+                         model.model_label)
 
 
 @dataclass(frozen=True)
 class LinearizationGrid:
-    """Linear models over N poses."""
+    """Linear models over N poses of n modelled joints."""
 
-    q: np.ndarray    # (N, 3) poses (rad, rad, m)
-    u0: np.ndarray   # (N, 3) holding PWM
-    A: np.ndarray    # (N, 6, 6)
-    B: np.ndarray    # (N, 6, 3)
+    q: np.ndarray    # (N, n) poses (rad, m)
+    u0: np.ndarray   # (N, n) holding input (PWM counts, or N m / N)
+    A: np.ndarray    # (N, 2n, 2n)
+    B: np.ndarray    # (N, 2n, n)
 
 
-def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = True) -> LinearizationGrid:
-    """Linear models at (N, 3) poses: the compiled gravity and Jacobians
+def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = True,
+                   method: str | None = None) -> LinearizationGrid:
+    """Linear models at (N, n) poses: the compiled gravity and Jacobians
     (:mod:`rcm_kin.symbolic.compiled`) mapped over chunks of ``chunk`` poses. ``compile=False``
     maps the interpreted functions (the same values to rounding, about 45 us a pose against 5):
-    for a model used once on a few poses, whose compilation would cost seconds."""
+    for a model used once on a few poses, whose compilation would cost seconds.
+
+    ``method``: ``"ad"``, CasADi's Jacobians of ``forward`` at ``(x0, u0)``; ``"rest"``, the
+    closed form at an equilibrium, ``A = [[0, I], [-M^-1 dg/dq, -M^-1 D]]``, ``B = [0; M^-1 K]``
+    (``D`` the drive's damping and Coulomb slope at rest, ``K`` its gains; exact at rest, where
+    the applied input cancels gravity and the Coriolis terms are quadratic in ``v``), from the
+    compiled ``(g, M, dg/dq)`` and batched NumPy: cheaper for many joints. Default: ``"ad"`` for a
+    model with a drive (the PSM's tables, bit for bit as before), ``"rest"`` for a torque-input model."""
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
-    if Q.ndim != 2 or Q.shape[1] != 3 or not np.all(np.isfinite(Q)):
-        raise RcmKinError(f"poses must be finite rows of 3 values ({', '.join(DRIVEN)}), got shape {Q.shape}")
+    n = len(model.joints)
+    if Q.ndim != 2 or Q.shape[1] != n or not np.all(np.isfinite(Q)):
+        raise RcmKinError(f"poses must be finite rows of {n} values ({', '.join(model.joints)}), got shape {Q.shape}")
+    method = method or ("ad" if model.pwm_input else "rest")
+    if method not in ("ad", "rest"):
+        raise RcmKinError(f"`method` is 'ad' or 'rest', got {method!r}", parameter="method")
     check_in_range(model, Q)
+    if method == "rest":
+        return _rest_grid(model, Q, chunk, compile)
     gravity, jacobians = _compiled(model) if compile else (model.gravity, model.jacobians)
     (g,) = map_points(gravity, Q, chunk=chunk)
     u0 = g / model.drive.input_gain
@@ -131,10 +157,31 @@ def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = 
     return LinearizationGrid(Q, u0, A, B)
 
 
+def _rest_grid(model: DrivenDynamics, Q: np.ndarray, chunk: int, compile: bool) -> LinearizationGrid:
+    """:func:`linearize_grid` by the closed form at rest."""
+    n, drive = len(model.joints), model.drive
+    g, M, dg = map_points(_compiled_rest(model) if compile else model.rest, Q, chunk=chunk)
+    damping = drive.damping + (drive.coulomb / drive.coulomb_velocity if model.coulomb else 0.0)
+    Minv = np.linalg.inv(M)
+    A = np.zeros((len(Q), 2 * n, 2 * n))
+    A[:, :n, n:] = np.eye(n)
+    A[:, n:, :n] = -Minv @ dg
+    A[:, n:, n:] = -Minv * damping
+    B = np.zeros((len(Q), 2 * n, n))
+    B[:, n:] = Minv * drive.input_gain
+    return LinearizationGrid(Q, g / drive.input_gain, A, B)
+
+
 @functools.lru_cache(maxsize=8)
 def _compiled(model: DrivenDynamics) -> tuple[ca.Function, ca.Function]:
     """Holding gravity and (A, B), compiled (built once, then loaded from the cache)."""
     return compiled(model.gravity), compiled(model.jacobians)
+
+
+@functools.lru_cache(maxsize=8)
+def _compiled_rest(model: DrivenDynamics) -> ca.Function:
+    """``q -> (g, M, dg/dq)``, compiled (built once, then loaded from the cache)."""
+    return compiled(model.rest)
 
 
 def linearize_finite_differences(model: DrivenDynamics, x, u, step: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
@@ -144,8 +191,8 @@ def linearize_finite_differences(model: DrivenDynamics, x, u, step: float = 1e-6
     def f(xx, uu):
         return np.array(model.forward(xx, uu)).ravel()
 
-    A = np.column_stack([(f(x + step * e, u) - f(x - step * e, u)) / (2 * step) for e in np.eye(6)])
-    B = np.column_stack([(f(x, u + e) - f(x, u - e)) / 2 for e in np.eye(3)])   # exactly linear in u
+    A = np.column_stack([(f(x + step * e, u) - f(x - step * e, u)) / (2 * step) for e in np.eye(x.size)])
+    B = np.column_stack([(f(x, u + e) - f(x, u - e)) / 2 for e in np.eye(u.size)])   # exactly linear in u
     return A, B
 
 
@@ -160,8 +207,10 @@ def linearize_pinocchio(robot: Robot, model: DrivenDynamics, offsets: dict, x, u
     The drive terms are differentiated by hand.
     """
     x, u = np.asarray(x, float), np.asarray(u, float)
-    q, v = x[:3], x[3:]
-    tree, S, index = _armatured_tree(robot, model), relation_jacobian(robot), [robot.actuated.index(j) for j in DRIVEN]
+    n = len(model.joints)
+    q, v = x[:n], x[n:]
+    tree, S = _armatured_tree(robot, model), relation_jacobian(robot)
+    index = [robot.actuated.index(j) for j in model.joints]
     data = tree.createData()
     q_act = model.q_fixed.copy()
     q_act[index] = q
@@ -169,7 +218,7 @@ def linearize_pinocchio(robot: Robot, model: DrivenDynamics, offsets: dict, x, u
     q_tree, v_tree = tree_configuration(robot, q_act), Sd @ v
 
     drive = model.drive
-    coulomb_slope = np.zeros(3)
+    coulomb_slope = np.zeros(n)
     tau_drive = drive.input_gain * u - drive.damping * v
     if model.coulomb:
         smooth = np.tanh(v / drive.coulomb_velocity)
@@ -186,9 +235,9 @@ def linearize_pinocchio(robot: Robot, model: DrivenDynamics, offsets: dict, x, u
     dtau_dq = Sd.T @ (-M_tree @ da_dq) @ Sd + Sd.T @ dg_offsets @ Sd
     dtau_dv = Sd.T @ (-M_tree @ da_dv) @ Sd
     Minv = np.linalg.inv(M)
-    A = np.block([[np.zeros((3, 3)), np.eye(3)],
+    A = np.block([[np.zeros((n, n)), np.eye(n)],
                   [-Minv @ dtau_dq, -Minv @ (dtau_dv + np.diag(drive.damping + coulomb_slope))]])
-    B = np.vstack([np.zeros((3, 3)), Minv @ np.diag(drive.input_gain)])
+    B = np.vstack([np.zeros((n, n)), Minv @ np.diag(drive.input_gain)])
     return A, B
 
 
@@ -199,8 +248,8 @@ def _symmetric(M: np.ndarray) -> np.ndarray:
 @functools.lru_cache(maxsize=8)
 def _armatured_tree(robot: Robot, model: DrivenDynamics) -> pin.Model:
     tree = pin.Model(robot.tree)
-    for joint, inertia in zip(DRIVEN, model.drive.reflected_inertia):
-        tree.armature[tree.joints[tree.getJointId(joint)].idx_v] = inertia
+    for joint, inertia in zip(model.joints, model.drive.reflected_inertia):
+        tree.armature[tree.joints[tree.getJointId(joint)].idx_v] += inertia
     return tree
 
 

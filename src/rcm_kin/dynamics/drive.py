@@ -9,10 +9,14 @@ ratio ``gear_ratio`` (motor rad per joint rad, or per metre for the insertion), 
     voltage   = resistance * current + torque_constant * gear_ratio * v   (V)
     pwm       = pwm_sign * voltage / volts_per_pwm    (counts; hardware sign)
 
-The parameters live in ``urdf/psm_drive.toml`` beside the PSM's sidecar (documented there); the shipped
-set is the calibrated one (:mod:`rcm_kin.identification.calibration`). The firmware's PWM saturation
-is not a drive constant: it comes from :data:`rcm_kin.hardware.PWM_LIMIT` (older files that
-still carry a ``pwm_limit`` key load when it agrees).
+A drive file describes one robot (its ``robot`` key) and the actuated joints it has tables for:
+every top-level table other than ``[gravity_offsets]`` and ``[drive_train.<joint>]`` is a joint
+table, and their order in the file is :attr:`DriveParameters.driven`, the order of every per-joint
+array. The bundled PSM's lives in ``urdf/psm_drive.toml`` beside its sidecar (documented there); the
+shipped set is the calibrated one (:mod:`rcm_kin.identification.calibration`). For the bundled PSM
+the PWM saturation is not a drive constant: it comes from the firmware,
+:data:`rcm_kin.hardware.PWM_LIMIT` (older files that still carry a ``pwm_limit`` key load when it
+agrees); a drive file of any other robot gives ``pwm_limit`` (counts) in each joint table.
 """
 
 from __future__ import annotations
@@ -24,14 +28,13 @@ import numpy as np
 
 from rcm_kin.dynamics.axis_friction import AxisFriction
 from rcm_kin.dynamics.drive_schema import DRIVE_TRAIN, DRIVE_TRAIN_DEFAULT, JOINT_DRIVE, check_offset, check_table
-from rcm_kin.errors import ParameterFileError, RcmKinError, read_toml
-from rcm_kin.errors import RcmKinWarning, warn
+from rcm_kin.errors import ParameterFileError, RcmKinError, RcmKinWarning, read_toml, warn
 from rcm_kin.hardware import PWM_LIMIT
 from rcm_kin.model.loading import urdf_dir
 
 DEFAULT_PARAMETERS = urdf_dir() / "psm_drive.toml"   # the bundled PSM's calibration (its sidecar names it)
 SHIPPED_ROBOT = "psm"       # the robot a drive file that names none is taken to describe (older files)
-DRIVEN = ("roll", "pitch", "insertion")
+DRIVEN = ("roll", "pitch", "insertion")   # the bundled PSM's (its PSM-specific code); generic code: params.driven
 DRIVEN_UNIT = {"roll": "rad", "pitch": "rad", "insertion": "m"}   # SI unit of each driven joint's position
 FIRMWARE_FIELDS = ("pwm_limit",)   # JointDrive fields set from rcm_kin.hardware, not read from the file
 
@@ -45,7 +48,7 @@ class JointDrive:
     resistance: float
     volts_per_pwm: float
     pwm_sign: float
-    pwm_limit: float                 # counts: the firmware saturation (rcm_kin.hardware.PWM_LIMIT on loading)
+    pwm_limit: float                 # counts: the firmware saturation (the PSM's: rcm_kin.hardware.PWM_LIMIT)
     rotor_inertia: float
     viscous: float
     coulomb: float
@@ -90,7 +93,7 @@ class DriveParameters:
 
 @dataclass(frozen=True)
 class DriveEffort:
-    """What the drives must do, per driven joint (arrays of shape (..., 3) in DRIVEN order)."""
+    """What the drives must do, per driven joint (arrays of shape (..., n) in ``params.driven`` order)."""
 
     tau: np.ndarray            # joint torque/force (N m, N)
     motor_torque: np.ndarray   # N m
@@ -101,9 +104,11 @@ class DriveEffort:
 
 
 def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
-    """Read a drive parameter file (default: the shipped, calibrated one); each joint's
-    ``pwm_limit`` is the firmware's (:data:`rcm_kin.hardware.PWM_LIMIT`). Every value is checked
-    against its unit and range (:mod:`rcm_kin.dynamics.drive_schema`)."""
+    """Read a drive parameter file (default: the shipped, calibrated one of the bundled PSM). Its
+    joint tables (every top-level table but ``[gravity_offsets]`` and ``[drive_train]``, in file
+    order) are the driven joints; the PSM's ``pwm_limit`` is the firmware's
+    (:data:`rcm_kin.hardware.PWM_LIMIT`), any other robot's is read from each joint table. Every
+    value is checked against its unit and range (:mod:`rcm_kin.dynamics.drive_schema`)."""
     path = Path(path) if path is not None else DEFAULT_PARAMETERS
     raw = read_toml(path, "drive parameter file")
     robot = raw.get("robot", None)
@@ -113,34 +118,50 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
     elif not isinstance(robot, str) or not robot:
         raise ParameterFileError(f"{path}: robot must be the name of the robot the file describes, got {robot!r}"[:300],
                                  path=path, table=None, key="robot")
-    names = [f.name for f in fields(JointDrive) if f.name not in FIRMWARE_FIELDS]
-    required = [f.name for f in fields(JointDrive) if f.default is MISSING and f.name in names]
-    joints = {}
-    for joint, limit in zip(DRIVEN, PWM_LIMIT):
-        entry = raw.get(joint)
-        if not isinstance(entry, dict) or set(required) - set(entry):
-            absent = sorted(set(required) - set(entry)) if isinstance(entry, dict) else list(required)
-            raise ParameterFileError(f"{path}: [{joint}] needs {', '.join(required)}", path=path, table=joint,
-                                     key=absent[0] if absent else None)
-        unknown = sorted(set(entry) - set(names) - set(FIRMWARE_FIELDS))
-        if unknown:
-            raise ParameterFileError(f"{path}: [{joint}] has unknown keys {', '.join(unknown)} "
-                                     f"(known: {', '.join(names)})", path=path, table=joint, key=unknown[0])
-        values = check_table(entry, JOINT_DRIVE, path, joint)
-        joints[joint] = JointDrive(**{n: values[n] for n in names if n in values}, pwm_limit=float(limit))
-        legacy = values.get("pwm_limit", float(limit))
-        if legacy != limit:
-            raise ParameterFileError(f"{path}: [{joint}] pwm_limit = {legacy:g} differs from the firmware's {limit:g} "
-                                     "counts (rcm_kin/hardware.py PWM_LIMIT); drive files no longer set it: remove the "
-                                     "key (a simulation takes other limits through FirmwareSettings, `pwm_limit`)",
-                                     path=path, table=joint, key="pwm_limit", parameter="pwm_limit")
+    tables = {k: v for k, v in raw.items() if k not in ("robot", "gravity_offsets", "drive_train")}
+    if not tables:
+        raise ParameterFileError(f"{path}: describes no joint (one table [<joint>] per driven joint)", path=path,
+                                 table=None, key=None)
+    firmware = dict(zip(DRIVEN, PWM_LIMIT)) if robot == SHIPPED_ROBOT else {}
+    for joint in firmware:                   # the PSM's code takes its three driven joints as given
+        tables.setdefault(joint, None)
+    joints = {joint: _joint_drive(path, joint, entry, firmware.get(joint)) for joint, entry in tables.items()}
     offsets = {}
     if not isinstance(raw.get("gravity_offsets", {}), dict):
         raise ParameterFileError(f"{path}: gravity_offsets must be a table [gravity_offsets] of 3-number lists (kg m)",
                                  path=path, table="gravity_offsets")
     for link, value in raw.get("gravity_offsets", {}).items():
         offsets[link] = np.array(check_offset(value, path, link))
-    return DriveParameters(joints, offsets, str(path), _drive_train(path, raw.get("drive_train", {})), robot)
+    return DriveParameters(joints, offsets, str(path), _drive_train(path, raw.get("drive_train", {}), tuple(joints)),
+                           robot)
+
+
+def _joint_drive(path: Path, joint: str, entry, limit: float | None) -> JointDrive:
+    """One joint table: its constants checked; ``pwm_limit`` the firmware's ``limit`` when given
+    (a key in the file must then agree), else required in the table."""
+    names = [f.name for f in fields(JointDrive) if f.name not in FIRMWARE_FIELDS]
+    required = [f.name for f in fields(JointDrive) if f.default is MISSING and f.name in names]
+    required += [] if limit is not None else list(FIRMWARE_FIELDS)
+    if not isinstance(entry, dict) or set(required) - set(entry):
+        absent = sorted(set(required) - set(entry)) if isinstance(entry, dict) else list(required)
+        raise ParameterFileError(f"{path}: [{joint}] needs {', '.join(required)}"
+                                 + (" (pwm_limit: the firmware's saturation, counts)" if limit is None else ""),
+                                 path=path, table=joint, key=absent[0] if absent else None)
+    unknown = sorted(set(entry) - set(names) - set(FIRMWARE_FIELDS))
+    if unknown:
+        raise ParameterFileError(f"{path}: [{joint}] has unknown keys {', '.join(unknown)} "
+                                 f"(known: {', '.join(names + list(FIRMWARE_FIELDS))})", path=path, table=joint,
+                                 key=unknown[0])
+    values = check_table(entry, JOINT_DRIVE, path, joint)
+    if limit is None:
+        return JointDrive(**{n: values[n] for n in names if n in values}, pwm_limit=values["pwm_limit"])
+    legacy = values.get("pwm_limit", float(limit))
+    if legacy != limit:
+        raise ParameterFileError(f"{path}: [{joint}] pwm_limit = {legacy:g} differs from the firmware's {limit:g} "
+                                 "counts (rcm_kin/hardware.py PWM_LIMIT); drive files no longer set it: remove the "
+                                 "key (a simulation takes other limits through FirmwareSettings, `pwm_limit`)",
+                                 path=path, table=joint, key="pwm_limit", parameter="pwm_limit")
+    return JointDrive(**{n: values[n] for n in names if n in values}, pwm_limit=float(limit))
 
 
 def check_drive(robot, params: DriveParameters) -> DriveParameters:
@@ -173,18 +194,18 @@ def model_label(params: DriveParameters | None) -> str:
     return "CAD (URDF inertias)" if params is None else params.model
 
 
-def _drive_train(path: Path, raw) -> dict[str, AxisFriction]:
+def _drive_train(path: Path, raw, driven: tuple[str, ...]) -> dict[str, AxisFriction]:
     """The ``[drive_train.<joint>]`` tables: the identified stick-slip model of each joint. Values
     are numbers (not booleans) in the ranges of :data:`rcm_kin.dynamics.drive_schema.DRIVE_TRAIN`:
     finite, >= 0 but for the presliding slope (|s| <= 20 /rad), and a Stribeck velocity > 0."""
     known = [f.name for f in fields(AxisFriction)]
     if not isinstance(raw, dict):
-        raise ParameterFileError(f"{path}: drive_train must be tables [drive_train.<joint>] ({', '.join(DRIVEN)})",
+        raise ParameterFileError(f"{path}: drive_train must be tables [drive_train.<joint>] ({', '.join(driven)})",
                                  path=path, table="drive_train")
     out = {}
     for joint, entry in raw.items():
-        if joint not in DRIVEN:
-            raise ParameterFileError(f"{path}: [drive_train.{joint}] is not a driven joint ({', '.join(DRIVEN)})",
+        if joint not in driven:
+            raise ParameterFileError(f"{path}: [drive_train.{joint}] is not a joint of the file ({', '.join(driven)})",
                                      path=path, table=f"drive_train.{joint}")
         if not isinstance(entry, dict):
             raise ParameterFileError(f"{path}: drive_train.{joint} must be a table [drive_train.{joint}] of parameters",
@@ -203,7 +224,8 @@ def write_parameters(params: DriveParameters, path: str | Path, header: str = ""
     lines = [f"# {line}" if line else "#" for line in header.splitlines()]
     lines += ["", f"robot = {params.robot!r}".replace("'", '"')]
     for joint, drive in params.joints.items():
-        values = {k: v for k, v in vars(drive).items() if k not in FIRMWARE_FIELDS}
+        firmware = FIRMWARE_FIELDS if params.robot == SHIPPED_ROBOT and joint in DRIVEN else ()
+        values = {k: v for k, v in vars(drive).items() if k not in firmware}
         lines += ["", f"[{joint}]"] + [f"{k} = {float(v)!r}" for k, v in values.items()]
     lines += ["", "[gravity_offsets]"]
     lines += [f"{link} = [{', '.join(repr(float(x)) for x in h)}]" for link, h in params.gravity_offsets.items()]
@@ -224,17 +246,21 @@ def with_joint(params: DriveParameters, joint: str, **changes) -> DriveParameter
     return replace(params, joints=joints)
 
 
+def _constants(params: DriveParameters, *names: str) -> tuple[np.ndarray, ...]:
+    """Per driven joint (``params.driven`` order), one array per constant named."""
+    return tuple(np.array([getattr(params[j], a) for j in params.driven]) for a in names)
+
+
 def drive_effort(params: DriveParameters, tau, v=None) -> DriveEffort:
-    """Motor torque, current, voltage and PWM for joint torques ``tau`` (..., 3) of the driven
-    joints (roll, pitch, insertion) at joint velocities ``v`` (default 0: holding)."""
+    """Motor torque, current, voltage and PWM for joint torques ``tau`` (..., n) of the driven
+    joints (``params.driven``, n of them) at joint velocities ``v`` (default 0: holding)."""
     tau = np.asarray(tau, dtype=float)
-    if tau.shape[-1:] != (3,):
-        raise RcmKinError(f"drive_effort takes torques of the 3 driven joints ({', '.join(DRIVEN)})")
+    n = len(params.driven)
+    if tau.shape[-1:] != (n,):
+        raise RcmKinError(f"drive_effort takes torques of the {n} driven joints ({', '.join(params.driven)})")
     v = np.zeros_like(tau) if v is None else np.broadcast_to(np.asarray(v, dtype=float), tau.shape)
-    d = [params[j] for j in DRIVEN]
-    gear, kt, res, vpp, sign, limit = (np.array([getattr(x, a) for x in d]) for a in
-                                       ("gear_ratio", "torque_constant", "resistance", "volts_per_pwm",
-                                        "pwm_sign", "pwm_limit"))
+    gear, kt, res, vpp, sign, limit = _constants(params, "gear_ratio", "torque_constant", "resistance",
+                                                 "volts_per_pwm", "pwm_sign", "pwm_limit")
     motor_torque = tau / gear
     current = motor_torque / kt
     voltage = res * current + kt * gear * v
@@ -243,6 +269,6 @@ def drive_effort(params: DriveParameters, tau, v=None) -> DriveEffort:
 
 
 def pwm_to_torque(params: DriveParameters, pwm) -> np.ndarray:
-    """Static joint torque (..., 3) produced by PWM counts (..., 3) at zero velocity."""
+    """Static joint torque (..., n) produced by PWM counts (..., n) at zero velocity (``params.driven`` order)."""
     pwm = np.asarray(pwm, dtype=float)
-    return pwm / np.array([params[j].pwm_per_torque for j in DRIVEN])
+    return pwm / np.array([params[j].pwm_per_torque for j in params.driven])

@@ -1,8 +1,11 @@
-"""Forward dynamics of the PSM's driven joints (roll, pitch, insertion) with PWM as input.
+"""Forward dynamics of a robot's modelled joints: PWM input through the robot's drive, or joint
+torque where it has none.
 
-State ``x = [q; v]`` with ``q = (roll rad, pitch rad, insertion m)`` and ``v`` their rates;
-input ``u`` = PWM counts of the three drivers (hardware sign, not saturated). The instrument
-joints are held at fixed values. The model, on CasADi symbols:
+With a drive (the bundled PSM: roll, pitch, insertion) the state is ``x = [q; v]`` of the drive's
+joints (rad or m, and their rates) and the input ``u`` the PWM counts of their drivers (hardware
+sign, not saturated); the other joints are held at fixed values. Without a drive the model covers
+the chosen joints (default all actuated) on the URDF inertias, with the joint torques (N m, N)
+as input (``k_u = 1``, no drive terms). The model, on CasADi symbols:
 
     (M(q) + diag(N^2 J_rotor + J_extra)) a = k_u u - (k_t^2 N^2 / R + b) v - F_c tanh(v / v_c) - c(q, v) - g(q)
 
@@ -24,7 +27,7 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, load_drive_parameters
+from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, check_drive, model_label, robot_drive
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import DRIVER_PWM_RANGE
 from rcm_kin.model.gravity import offset_moments
@@ -35,12 +38,16 @@ from rcm_kin.symbolic.tree import tree_joints, world_placements
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
 
+PWM_UNIT = "PWM [counts]"           # DrivenDynamics.input_unit of a model with a drive
+TORQUE_UNIT = "torque [N m / N]"    # ... of a torque-input model (N m revolute, N prismatic)
+
 
 @dataclass(frozen=True)
 class DriveConstants:
-    """Per driven joint, in DRIVEN order (SI)."""
+    """Per modelled joint, in the model's joint order (SI). A torque-input model has unit gains
+    and no drive terms (zeros)."""
 
-    input_gain: np.ndarray         # k_u: N m (N) per PWM count, hardware sign included
+    input_gain: np.ndarray         # k_u: N m (N) per PWM count, hardware sign included; 1 for torque input
     damping: np.ndarray            # back-EMF + viscous: N m s/rad (N s/m)
     coulomb: np.ndarray            # N m (N)
     coulomb_velocity: np.ndarray   # rad/s (m/s)
@@ -48,7 +55,8 @@ class DriveConstants:
 
 
 def drive_constants(params: DriveParameters) -> DriveConstants:
-    d = [params[j] for j in DRIVEN]
+    """The model constants of each driven joint of ``params`` (``params.driven`` order)."""
+    d = [params[j] for j in params.driven]
     return DriveConstants(
         input_gain=np.array([1.0 / x.pwm_per_torque for x in d]),
         damping=np.array([x.torque_constant**2 * x.gear_ratio**2 / x.resistance + x.viscous for x in d]),
@@ -57,13 +65,20 @@ def drive_constants(params: DriveParameters) -> DriveConstants:
         reflected_inertia=np.array([x.reflected_inertia for x in d]))
 
 
+def torque_constants(n: int) -> DriveConstants:
+    """The constants of a torque-input model of ``n`` joints: ``u`` is the joint torque itself."""
+    zero = np.zeros(n)
+    return DriveConstants(np.ones(n), zero, zero, np.ones(n), zero)
+
+
 @dataclass(frozen=True, eq=False)
 class DrivenDynamics:
-    """The driven-joint model as CasADi functions (evaluate with NumPy arrays or symbols)."""
+    """The model of a robot's modelled joints as CasADi functions (evaluate with NumPy arrays or
+    symbols): PWM input where the robot has a drive, joint torque (N m, N) where it has none."""
 
-    joints: tuple[str, ...]        # ("roll", "pitch", "insertion")
-    q_fixed: np.ndarray            # the robot's actuated q; driven entries are overwritten
-    lower: np.ndarray              # (3,) joint limits of the driven joints (rad, rad, m)
+    joints: tuple[str, ...]        # the modelled joints, e.g. ("roll", "pitch", "insertion")
+    q_fixed: np.ndarray            # the robot's actuated q; modelled entries are overwritten
+    lower: np.ndarray              # (n,) joint limits of the modelled joints (rad or m)
     upper: np.ndarray
     drive: DriveConstants
     coulomb: bool                  # whether the smoothed Coulomb term is in ``forward``
@@ -72,39 +87,87 @@ class DrivenDynamics:
     mass_matrix: ca.Function       # q -> M + diag(N^2 J_rotor)   (kg m^2, kg)
     bias: ca.Function              # (q, v) -> c(q, v) + g(q)     (N m, N)
     gravity: ca.Function           # q -> g(q), offsets included  (N m, N)
+    units: tuple[str, ...] = ()    # per joint "rad" or "m"
+    input_unit: str = PWM_UNIT     # "PWM [counts]" or "torque [N m / N]" (TORQUE_UNIT)
+    model_label: str = ""          # which model: "calibration <file>" or "CAD (URDF inertias)"
+    robot: str = ""                # the robot's name
+    rest: ca.Function | None = None   # q -> (g, M, dg/dq): what the model is linearised from at rest
 
     @property
     def state(self) -> list[str]:
+        """State names: ``q_<joint>`` then ``v_<joint>``."""
         return [f"q_{j}" for j in self.joints] + [f"v_{j}" for j in self.joints]
 
     @property
     def inputs(self) -> list[str]:
-        return [f"pwm_{j}" for j in self.joints]
+        """Input names: ``pwm_<joint>`` (a drive) or ``tau_<joint>`` (torque input)."""
+        prefix = "pwm" if self.input_unit == PWM_UNIT else "tau"
+        return [f"{prefix}_{j}" for j in self.joints]
+
+    @property
+    def pwm_input(self) -> bool:
+        """Whether the input is PWM counts through a drive (else joint torque)."""
+        return self.input_unit == PWM_UNIT
+
+    def input_label(self, k: int) -> str:
+        """The input of joint ``k`` for people: ``roll PWM [counts]``, ``j2 torque [N m]``, ``d3 torque [N]``."""
+        if self.pwm_input:
+            return f"{self.joints[k]} PWM [counts]"
+        return f"{self.joints[k]} torque [{'N' if self.units[k] == 'm' else 'N m'}]"
 
 
-def driven_dynamics(robot: Robot, params: DriveParameters | None = None, q_fixed=None,
-                    coulomb: bool = True) -> DrivenDynamics:
-    """Build the CasADi model of ``robot``'s driven joints (the PSM).
+def require_masses(robot: Robot, what: str) -> None:
+    """A one-line error when no link of ``robot``'s URDF has a mass: ``what`` would be all zeros.
+    (Stand-in for ``rcm_kin.model.require_masses`` until it is on main.)"""
+    if all(inertia.mass == 0.0 for inertia in robot.tree.inertias[1:]):
+        raise RcmKinError(f"{robot.name}: its URDF gives no link a mass (<inertial>): {what} would be all zeros; "
+                          "add the links' inertial data to the URDF", parameter="robot")
 
-    ``q_fixed``: actuated configuration (robot order) giving the held instrument joints
-    (default all zero). ``coulomb=False`` leaves the smoothed Coulomb friction out, e.g. for
-    controller design (its slope at rest, ``F_c / v_c``, is a property of the smoothing only).
+
+def modelled_joints(robot: Robot, params: DriveParameters | None, joints=None) -> tuple[str, ...]:
+    """The joints a model of ``robot`` covers: the drive's (``params.driven``), else ``joints``
+    (default all actuated), each an actuated joint of the robot, no repeats."""
+    if params is not None:
+        if joints is not None and tuple(joints) != params.driven:
+            raise RcmKinError(f"the drive of {robot.name} ({params.source or 'in memory'}) models "
+                              f"{', '.join(params.driven)}: `joints` must be those or None", parameter="joints")
+        return params.driven
+    joints = robot.actuated if joints is None else tuple(joints)
+    if not joints or len(set(joints)) != len(joints) or any(j not in robot.actuated for j in joints):
+        raise RcmKinError(f"`joints` must be distinct actuated joints of {robot.name} ({', '.join(robot.actuated)}), "
+                          f"got {', '.join(map(str, joints)) or 'none'}", parameter="joints")
+    return joints
+
+
+def driven_dynamics(robot: Robot, params: DriveParameters | None = None, coulomb: bool = True, q_fixed=None,
+                    joints=None) -> DrivenDynamics:
+    """Build the CasADi model of ``robot``'s modelled joints.
+
+    ``params`` None: the robot's own drive (:func:`~rcm_kin.dynamics.drive.robot_drive`). With a
+    drive (checked against the robot: another robot's is a one-line error) the model has PWM input
+    and covers ``params.driven``; without one it has torque input (N m, N) on the URDF inertias
+    and covers ``joints`` (default all actuated). ``q_fixed``: actuated configuration (robot
+    order) giving the joints held still (default all zero). ``coulomb=False`` leaves the smoothed
+    Coulomb friction out, e.g. for controller design (its slope at rest, ``F_c / v_c``, is a
+    property of the smoothing only).
     """
-    if not set(DRIVEN) <= set(robot.actuated):
-        raise RcmKinError(f"{robot.name} has no driven joints {', '.join(DRIVEN)}: the drive model is the PSM's")
-    params = params if params is not None else load_drive_parameters()
+    params = robot_drive(robot) if params is None else check_drive(robot, params)
+    joints = modelled_joints(robot, params, joints)
+    require_masses(robot, "its dynamics")
+    n = len(joints)
     q_fixed = robot.check_q(np.zeros(robot.nq) if q_fixed is None else q_fixed)
-    index = [robot.actuated.index(j) for j in DRIVEN]
-    drive = drive_constants(params)
-    joints = tree_joints(robot.tree)
+    index = [robot.actuated.index(j) for j in joints]
+    drive = torque_constants(n) if params is None else drive_constants(params)
+    coulomb = bool(coulomb) and params is not None
+    tree = tree_joints(robot.tree)
     gravity = np.array(robot.tree.gravity.linear)
-    q, v, a, u = (ca.SX.sym(s, 3) for s in ("q", "v", "a", "u"))
-    phi = _driven_closure(robot, q_fixed, q)
+    q, v, a, u = (ca.SX.sym(s, n) for s in ("q", "v", "a", "u"))
+    phi = _driven_closure(robot, q_fixed, q, joints)
 
-    rigid = closed_chain_rnea(joints, gravity, phi, q, v, a)
-    zero = ca.DM.zeros(3)
+    rigid = closed_chain_rnea(tree, gravity, phi, q, v, a)
+    zero = ca.DM.zeros(n)
     g_rigid = ca.substitute(rigid, ca.vertcat(v, a), ca.vertcat(zero, zero))
-    g_offsets = _offset_gravity(robot, joints, gravity, params.gravity_offsets, phi, q)
+    g_offsets = _offset_gravity(robot, tree, gravity, {} if params is None else params.gravity_offsets, phi, q)
     M = ca.jacobian(rigid, a) + ca.diag(ca.DM(drive.reflected_inertia))
     bias = ca.substitute(rigid, a, zero) + g_offsets
 
@@ -114,38 +177,46 @@ def driven_dynamics(robot: Robot, params: DriveParameters | None = None, q_fixed
     x = ca.vertcat(q, v)
     xdot = ca.vertcat(v, ca.solve(M, tau - bias))
     return DrivenDynamics(
-        joints=DRIVEN, q_fixed=q_fixed, lower=robot.lower[index], upper=robot.upper[index], drive=drive,
+        joints=joints, q_fixed=q_fixed, lower=robot.lower[index], upper=robot.upper[index], drive=drive,
         coulomb=coulomb,
         forward=ca.Function("forward", [x, u], [xdot], ["x", "u"], ["xdot"]),
         jacobians=ca.Function("jacobians", [x, u], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)],
                               ["x", "u"], ["A", "B"]),
         mass_matrix=ca.Function("mass_matrix", [q], [M], ["q"], ["M"]),
         bias=ca.Function("bias", [q, v], [bias], ["q", "v"], ["h"]),
-        gravity=ca.Function("gravity", [q], [g_rigid + g_offsets], ["q"], ["g"]))
+        gravity=ca.Function("gravity", [q], [g_rigid + g_offsets], ["q"], ["g"]),
+        rest=ca.Function("rest", [q], [g_rigid + g_offsets, ca.substitute(M, v, zero),
+                                       ca.jacobian(g_rigid + g_offsets, q)], ["q"], ["g", "M", "dg"]),
+        units=tuple("m" if robot.joint_kind(j) == "prismatic" else "rad" for j in joints),
+        input_unit=PWM_UNIT if params is not None else TORQUE_UNIT, model_label=model_label(params),
+        robot=robot.name)
 
 
-def _driven_closure(robot: Robot, q_fixed: np.ndarray, q) -> ca.SX:
-    """Open-tree configuration of the driven coordinates ``q``: ``S (E q + q_rest) + offsets``,
+def _driven_closure(robot: Robot, q_fixed: np.ndarray, q, joints: tuple[str, ...]) -> ca.SX:
+    """Open-tree configuration of the modelled coordinates ``q``: ``S (E q + q_rest) + offsets``,
     the other actuated joints held at ``q_fixed``."""
-    index = [robot.actuated.index(j) for j in DRIVEN]
+    index = [robot.actuated.index(j) for j in joints]
     rest = q_fixed.copy()
     rest[index] = 0.0
     return linear_closure(relation_jacobian(robot)[:, index], tree_configuration(robot, rest), q)
 
 
-def driven_gravity_function(robot: Robot, offsets: dict, q_fixed=None) -> ca.Function:
-    """``q -> g(q)`` (N m, N) of the driven joints with the first-moment ``offsets`` ({link: (3,)
-    kg m}, e.g. ``DriveParameters.gravity_offsets``): the ``gravity`` of :func:`driven_dynamics`
-    without building the rest of the model."""
-    if not set(DRIVEN) <= set(robot.actuated):
-        raise RcmKinError(f"{robot.name} has no driven joints {', '.join(DRIVEN)}: the drive model is the PSM's")
+def driven_gravity_function(robot: Robot, offsets: dict, q_fixed=None, joints=None) -> ca.Function:
+    """``q -> g(q)`` (N m, N) of the modelled joints ``joints`` with the first-moment ``offsets``
+    ({link: (3,) kg m}, e.g. ``DriveParameters.gravity_offsets``): the ``gravity`` of
+    :func:`driven_dynamics` without building the rest of the model. ``joints`` None: the PSM's
+    driven joints where the robot has them all (what the callers of before expect), else all
+    actuated; give ``joints`` (e.g. ``params.driven``) to be explicit."""
+    if joints is None and set(DRIVEN) <= set(robot.actuated):
+        joints = DRIVEN                       # compatibility default (statics maps): pass joints instead
+    joints = modelled_joints(robot, None, joints)
     q_fixed = robot.check_q(np.zeros(robot.nq) if q_fixed is None else q_fixed)
-    joints = tree_joints(robot.tree)
+    tree = tree_joints(robot.tree)
     gravity = np.array(robot.tree.gravity.linear)
-    q, zero = ca.SX.sym("q", 3), ca.DM.zeros(3)
-    phi = _driven_closure(robot, q_fixed, q)
-    g = (closed_chain_rnea(joints, gravity, phi, q, zero, zero)
-         + _offset_gravity(robot, joints, gravity, offsets, phi, q))
+    q, zero = ca.SX.sym("q", len(joints)), ca.DM.zeros(len(joints))
+    phi = _driven_closure(robot, q_fixed, q, joints)
+    g = (closed_chain_rnea(tree, gravity, phi, q, zero, zero)
+         + _offset_gravity(robot, tree, gravity, offsets, phi, q))
     return ca.Function("driven_gravity", [q], [g], ["q"], ["g"])
 
 
@@ -154,25 +225,31 @@ def _offset_gravity(robot: Robot, joints, gravity, offsets: dict, phi, q) -> ca.
     the gradient of their potential ``-g . (R_j h_j)``."""
     moments = offset_moments(robot, offsets)
     if not moments:
-        return ca.SX.zeros(3)
+        return ca.SX.zeros(q.shape[0])
     placements = world_placements(joints, phi)
     potential = sum(-ca.dot(ca.DM(gravity), placements[j][0] @ ca.DM(h)) for j, h in moments.items())
     return ca.gradient(potential, q)
 
 
 def holding_pwm(model: DrivenDynamics, q) -> np.ndarray:
-    """PWM (3,) that holds the driven joints still at ``q`` (rad, rad, m): ``g(q) / k_u``."""
+    """Input (n,) that holds the modelled joints still at ``q`` (rad, m): ``g(q) / k_u``; PWM
+    counts through a drive, the torque itself (N m, N) for a torque-input model."""
     return np.array(model.gravity(q)).ravel() / model.drive.input_gain
 
 
-def check_state(x, u) -> tuple[np.ndarray, np.ndarray]:
-    """``x`` (6,) and ``u`` (3,) as float arrays, or a clear error (PWM within the driver's range)."""
+def check_state(x, u, model: DrivenDynamics | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``x`` (2n,) and ``u`` (n,) as float arrays, or a clear error (PWM within the driver's
+    range). ``model`` None: the PSM's three driven joints with PWM input."""
+    joints = model.joints if model is not None else DRIVEN
+    pwm = model is None or model.pwm_input
+    n = len(joints)
     x, u = np.asarray(x, dtype=float).ravel(), np.asarray(u, dtype=float).ravel()
-    if x.size != 6 or u.size != 3:
-        raise RcmKinError(f"the driven-joint state has 6 values (q, v of {', '.join(DRIVEN)}) and the input 3 "
-                          f"PWM values, got {x.size} and {u.size}")
+    if x.size != 2 * n or u.size != n:
+        what = "PWM" if pwm else "torque"
+        raise RcmKinError(f"the driven-joint state has {2 * n} values (q, v of {', '.join(joints)}) and the input "
+                          f"{n} {what} values, got {x.size} and {u.size}")
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(u))):
-        raise RcmKinError("state and PWM must be finite numbers")
-    if np.any(np.abs(u) > DRIVER_PWM_RANGE):
+        raise RcmKinError(f"state and {'PWM' if pwm else 'torque'} must be finite numbers")
+    if pwm and np.any(np.abs(u) > DRIVER_PWM_RANGE):
         raise RcmKinError(f"PWM beyond the 8-bit driver's range (|u| <= {DRIVER_PWM_RANGE:.0f} counts): {u.tolist()}")
     return x, u
