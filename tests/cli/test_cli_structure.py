@@ -53,9 +53,9 @@ def test_cli_start_up_leaves_the_heavy_libraries_for_the_commands():
 
 def test_cli_has_every_command():
     commands = rcm_kin.cli.build_parser()._subparsers._group_actions[0].choices
-    assert list(commands) == ["info", "fk", "ik", "gravity", "torque-map", "counterweights", "calibrate", "dynamics", "linearize",
-                              "schedule", "simulate", "robustness", "sweep", "sysid", "greybox", "identify", "predict",
-                              "excite", "view", "safety", "report", "export"]
+    assert list(commands) == ["info", "fk", "ik", "gravity", "torque-map", "counterweights", "calibrate", "dynamics",
+                              "linearize", "schedule", "simulate", "robustness", "sweep", "sysid", "greybox",
+                              "identify", "predict", "excite", "view", "safety", "report", "export"]
 
 
 # --- inverse kinematics: every solution put through forward kinematics lands on its target ---

@@ -169,5 +169,5 @@ def test_massless_urdf_is_refused_in_one_line(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     for argv in (["linearize", "bare.toml", "--q", "0"], ["dynamics", "bare.toml", "--q", "0"],
                  ["schedule", "bare.toml", "--grid", "j2=0:10:2", "j3=0:10:2", "--out", "g"]):
-        one_line_error(capsys, argv, "gives no link a mass")
+        one_line_error(capsys, argv, "needs masses: links")
     assert not (tmp_path / "g").exists()

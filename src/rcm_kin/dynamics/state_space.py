@@ -31,6 +31,7 @@ from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, check_drive, model_l
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import DRIVER_PWM_RANGE
 from rcm_kin.model.gravity import offset_moments
+from rcm_kin.model.masses import require_masses
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
 from rcm_kin.symbolic.tree import tree_joints, world_placements
@@ -114,14 +115,6 @@ class DrivenDynamics:
         if self.pwm_input:
             return f"{self.joints[k]} PWM [counts]"
         return f"{self.joints[k]} torque [{'N' if self.units[k] == 'm' else 'N m'}]"
-
-
-def require_masses(robot: Robot, what: str) -> None:
-    """A one-line error when no link of ``robot``'s URDF has a mass: ``what`` would be all zeros.
-    (Stand-in for ``rcm_kin.model.require_masses`` until it is on main.)"""
-    if all(inertia.mass == 0.0 for inertia in robot.tree.inertias[1:]):
-        raise RcmKinError(f"{robot.name}: its URDF gives no link a mass (<inertial>): {what} would be all zeros; "
-                          "add the links' inertial data to the URDF", parameter="robot")
 
 
 def modelled_joints(robot: Robot, params: DriveParameters | None, joints=None) -> tuple[str, ...]:
