@@ -91,6 +91,44 @@ def test_gravity_section(tmp_path):
     assert s.drive_source == "psm_drive.toml"
 
 
+def test_mtm_section(tmp_path):
+    """The MTM's section: its map's CSV is plain Pinocchio's gravity at every pose, the placed
+    counterweight beats the one as built, and the linear models' holding torques are gravity's."""
+    import csv
+    import json
+
+    import numpy as np
+    import pinocchio as pin
+
+    from rcm_kin.model.loading import urdf_dir
+    from rcm_kin.report.sections.mtm import mtm_section
+
+    s = mtm_section(tmp_path, map_points=4)
+    html = assert_renders(s, tmp_path, {"mtm/torque_map.png", "mtm/torque_map.csv", "mtm/linear_models.json"})
+    assert "The MTM" in html and "CAD (URDF inertias)" in html and s.model == "CAD (URDF inertias)"
+    model = pin.buildModelFromUrdf(str(urdf_dir() / "mtm.urdf"))
+    data = model.createData()
+    idx = {n: model.joints[model.getJointId(n)].idx_q for n in ("j1", "j3")}
+
+    def gravity(j1, j3):
+        q = np.zeros(model.nq)
+        q[idx["j1"]], q[idx["j3"]] = j1, j3
+        return pin.computeGeneralizedGravity(model, data, q)
+
+    with open(tmp_path / "mtm" / "torque_map.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 16
+    for row in rows:
+        tau = gravity(np.radians(float(row["j1_deg"])), np.radians(float(row["j3_deg"])))
+        assert float(row["tau_j1"]) == pytest.approx(tau[idx["j1"]], abs=2e-9)
+        assert float(row["tau_j3"]) == pytest.approx(tau[idx["j3"]], abs=2e-9)
+    for entry in json.loads((tmp_path / "mtm" / "linear_models.json").read_text()):
+        tau = gravity(np.radians(entry["j1_deg"]), np.radians(entry["j3_deg"]))
+        np.testing.assert_allclose(entry["u_hold_N_m"], tau[[idx["j1"], idx["j3"]]], atol=1e-12)
+    design = {row[0]: [float(c) for c in row[1:]] for row in s.counterweight.rows}
+    assert design["j1"][2] < design["j1"][1] < design["j1"][0]       # placed < as built < without
+
+
 @pytest.fixture(scope="module")
 def schedule_section_small(tmp_path_factory):
     from rcm_kin.report.sections.schedule import schedule_section
@@ -194,11 +232,11 @@ def test_report_end_to_end(tmp_path, capsys):
     assert {"torque_map.png", "trend_curves.png", "torque_map.csv", "kinematic_checks.json", "stability_maps.png",
             "gain_schedule/gain_schedule.h", "linear_models.json", "psm.png", "psm_view.html", "mtm_view.html",
             "tracking/sine_errors.png", "tracking/target_animation.html", "davinci_view.html",
-            "safety_barriers.png"} <= set(links)
+            "safety_barriers.png", "mtm/torque_map.png", "mtm/linear_models.json"} <= set(links)
     for link in links:
         assert not link.startswith("/") and (tmp_path / link).stat().st_size > 0, link
     for section in ("Kinematic self-checks", "Counterweight design", "Gain schedule", "Linear models per grid pose",
-                    "Tracking experiments", "Safety", "SOS barrier certificates"):
+                    "Tracking experiments", "Safety", "SOS barrier certificates", "The MTM"):
         assert section in index
     assert str(tmp_path) not in index
     assert "report" in capsys.readouterr().err                # progress on stderr

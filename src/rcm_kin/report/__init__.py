@@ -2,13 +2,13 @@
 
 Sections (one module each in :mod:`rcm_kin.report.sections`, one template each in ``templates/``):
 pictures and meshcat pages of the robots, the models and their kinematic self-checks, holding-effort
-maps with the thesis Fig 4.6/4.7 curves, the drive parameters and the counterweight designs, the linear
-models per grid pose, the model-based gain schedule beside the thesis's tables, the thesis's tracking
-experiments (P against the scheduled controller) with animations, the controllers' robustness to the
-parameter uncertainty (a small Monte Carlo, the same as `rcm-kin robustness` gives on Dask), and the
-safety filters and certificates. With a data folder: calibration, identification per pose, the grey-box
-fit, and the identified drive train against every step log (each also left out of the fit) on the
-measured logs.
+maps with the thesis Fig 4.6/4.7 curves, the drive parameters and the counterweight designs, the
+MTM's torque map, counterweight and linear models, the linear models per grid pose, the model-based
+gain schedule beside the thesis's tables, the thesis's tracking experiments (P against the
+scheduled controller) with animations, the controllers' robustness to the parameter uncertainty (a
+small Monte Carlo, the same as `rcm-kin robustness` gives on Dask), and the safety filters and
+certificates. With a data folder: calibration, identification per pose, the grey-box fit, and the
+identified drive train against every step log (each also left out of the fit) on the measured logs.
 
 Each section computes a plain data object; :mod:`rcm_kin.report.render` renders them. The
 sections are cut into independent pieces (:func:`report_jobs`) that a process pool runs on the
@@ -89,6 +89,7 @@ def report_jobs(out: Path, data, map_points: int) -> list[Job]:
     from rcm_kin.report.sections.gravity import gravity_section
     from rcm_kin.report.sections.measured import measured_section
     from rcm_kin.report.sections.models import models_section
+    from rcm_kin.report.sections.mtm import mtm_section
     from rcm_kin.report.sections.mujoco import mujoco_section
     from rcm_kin.report.sections.robots import robots_section
     from rcm_kin.report.sections.robustness import robustness_section
@@ -107,7 +108,7 @@ def report_jobs(out: Path, data, map_points: int) -> list[Job]:
         Job("safety: PSM teleoperation", scenario_runs, (out, ("psm",))),
         Job("robustness", robustness_section, (out,)),
         Job("safety: linear scenarios", scenario_runs, (out, linear)),
-        Job("effort maps", gravity_section, (out, map_points)),
+        Job("effort maps", gravity_section, (out, map_points)), Job("MTM", mtm_section, (out, map_points)),
         Job("gain schedule, linear models", _schedule_sections, (out,)),
         Job("safety: certificates, RCM", safety_checks, ()),
         Job("MuJoCo", mujoco_section, (out,)), Job("robot views", robots_section, (out,)),
@@ -156,7 +157,8 @@ def _write_sections(out: Path, data, map_points: int, progress: bool, workers: i
     tracking = tracking_from_parts([results["tracking: sine"], results["tracking: target"]], _mtm_recording(data))
     safety = safety_from_parts([results["safety: linear scenarios"], results["safety: PSM teleoperation"]],
                                results["safety: certificates, RCM"])
-    sections = [results["robot views"], results["models checked"], results["effort maps"], linear, schedule,
+    sections = [results["robot views"], results["models checked"], results["effort maps"], results["MTM"], linear,
+                schedule,
                 tracking, results["robustness"], safety]
     sections += [s for s in [results["MuJoCo"]] if s is not None]   # with the [mujoco] extra
     if data is not None:

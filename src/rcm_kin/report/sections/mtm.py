@@ -33,9 +33,12 @@ class MtmSection:
     linear_data: str                # JSON of the linear models
 
 
-def _poles(A: np.ndarray) -> str:
-    return " ".join(f"{p.real:+.3g}{p.imag:+.2g}j" if abs(p.imag) > 1e-9 else f"{p.real:+.3g}"
-                    for p in sorted(np.linalg.eigvals(A), key=lambda p: (p.real, p.imag)))
+def _poles(A: np.ndarray, tiny: float = 1e-6) -> str:
+    """The eigenvalues of ``A`` (1/s), parts below ``tiny`` shown as 0 (an undamped model's rounding)."""
+    poles = [complex(0.0 if abs(p.real) < tiny else p.real, 0.0 if abs(p.imag) < tiny else p.imag)
+             for p in np.linalg.eigvals(A)]
+    return " ".join(f"{p.real:+.3g}{p.imag:+.3g}j" if p.imag else f"{p.real:+.3g}"
+                    for p in sorted(poles, key=lambda p: (p.real, p.imag)))
 
 
 def mtm_section(out: Path, map_points: int = 61) -> MtmSection:
@@ -75,7 +78,7 @@ def mtm_section(out: Path, map_points: int = 61) -> MtmSection:
     return MtmSection(
         model=tmap.model, map_points=map_points, figure=paths["torque_map.png"],
         data={name: p for name, p in paths.items() if not name.endswith(".png")}, peak=peak,
-        counterweight=counterweight, counterweight_link=f"{link} ({design.mass:.3f} kg)", mount=design.mount,
+        counterweight=counterweight, counterweight_link=f"{link}, {design.mass:.3f} kg", mount=design.mount,
         linear=Table.of(linear_rows, [f"{SHOULDER} (deg)", f"{ELBOW} (deg)", f"holding {SHOULDER} (N m)",
                                       f"holding {ELBOW} (N m)", "poles of A (1/s)"]),
         linear_data=relative(folder / "linear_models.json", out))
