@@ -41,7 +41,7 @@ from rcm_kin.symbolic.tree import tree_joints, world_placements
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
 
-BLOCK = 1 << 16     # poses evaluated at a time (bounds the temporaries of a large map)
+BLOCK = 1 << 13     # poses evaluated at a time: poses and torques stay in the cache (bounds the temporaries)
 DRIVE_BLOCK = 1 << 12   # poses through the drive model at a time: its temporaries stay in the cache
 
 
