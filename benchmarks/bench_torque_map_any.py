@@ -8,8 +8,21 @@
 - the PSM: today's path (``gravity_map``, roll x pitch at one insertion: the driven model's gravity and
   the drive) and the generic map over the same poses (all seven actuated joints, then the drive), per pose.
 
-    python benchmarks/bench_torque_map_any.py
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_torque_map_any.py
 Target: the generic path costs no more per pose than the PSM path (ratio <= 1.0, within timing noise).
+
+Two runs each, the same minute, 2 cores (another job running), us/pose, best of 7:
+
+    before (cdcf4b2)   MTM 0.52-0.57   UR5 0.26-0.36   PSM gravity_map 0.28-0.39   PSM torque_map 0.39-0.51  (1.29-1.38)
+    after              MTM 0.16-0.17   UR5 0.09-0.13   PSM gravity_map 0.29-0.42   PSM torque_map 0.20-0.24  (0.57-0.71)
+
+Where the time went: building a CasADi map of N points (``fn.map(N)``, rebuilt by every
+``map_points`` call) costs about as much as evaluating it, and a map's call of an external function
+adds about a third per point; the map now runs the compiled function's own C entry in one C loop
+per block of poses (:mod:`rcm_kin.symbolic.points`), written into the result in place, the drive in
+blocks of 4096 poses (in cache). In the C loop the gravity of all seven PSM joints costs 0.13 us a
+pose, the driven model's three 0.07 us; ``gravity_map`` still maps its function by CasADi (0.12 us
+a pose plus the map's building), so it would gain from the C loop too.
 """
 
 from __future__ import annotations
