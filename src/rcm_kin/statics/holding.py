@@ -34,13 +34,15 @@ from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.plotting import torque_heatmaps
 from rcm_kin.statics.maps import HoldingEffort, check_map_size, resolve_drive
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
-from rcm_kin.symbolic.compiled import compiled, map_points
+from rcm_kin.symbolic.compiled import map_points
+from rcm_kin.symbolic.points import CompiledPoints, compiled_points
 from rcm_kin.symbolic.tree import tree_joints, world_placements
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
 
-BLOCK = 1 << 16     # poses evaluated at a time (bounds the temporaries of a large map)
+BLOCK = 1 << 13     # poses evaluated at a time: poses and torques stay in the cache (bounds the temporaries)
+DRIVE_BLOCK = 1 << 12   # poses through the drive model at a time: its temporaries stay in the cache
 
 
 def unit_of(robot: Robot, joint: str) -> str:
@@ -192,6 +194,13 @@ def with_counterweights(robot: Robot, counterweights: bool) -> Robot:
     """``robot`` with or without its counterweights' mass (the same description rebuilt if needed)."""
     if bool(robot.with_counterweights) == bool(counterweights):
         return robot
+    return _rebuilt(robot, bool(counterweights))
+
+
+@functools.lru_cache(maxsize=8)
+def _rebuilt(robot: Robot, counterweights: bool) -> Robot:
+    """``robot``'s description built with or without the counterweights, once per robot in a process
+    (so its compiled gravity is found in :func:`_compiled`'s cache the next time)."""
     return build_robot(robot.description, counterweights)
 
 
@@ -227,18 +236,26 @@ def torque_map(robot: Robot, grid: dict, q=None, drive=None, counterweights: boo
 def map_gravity(robot: Robot, offsets: dict, q: np.ndarray, index: tuple[int, int], values, progress: bool = False,
                 block: int = BLOCK) -> np.ndarray:
     """Holding torques (A, B, nq) over the grid ``values`` of the actuated joints ``index``, the
-    others at ``q``: :func:`gravity_function` compiled, mapped over blocks of ``block`` poses."""
+    others at ``q``: :func:`gravity_function` compiled, evaluated over blocks of ``block`` poses
+    in one C loop each (:func:`~rcm_kin.symbolic.points.compiled_points`), written in place."""
     gravity = _compiled(robot, tuple((link, tuple(float(x) for x in h)) for link, h in sorted(offsets.items())))
     A, B = values[0].size, values[1].size
     tau = np.empty((A * B, robot.nq))
+    Q = np.empty((min(block, A * B), robot.nq))
+    Q[:] = q                                        # the fixed joints, once; the grid's two columns per block
+    dense = gravity.function.sparsity_out(0).is_dense()
     starts = range(0, A * B, block)
     if progress and len(starts) > 1:
         starts = tqdm(starts, desc="gravity", unit="block")
     for start in starts:
-        k = np.arange(start, min(start + block, A * B))
-        Q = np.broadcast_to(q, (k.size, robot.nq)).copy()
-        Q[:, index[0]], Q[:, index[1]] = values[0][k // B], values[1][k % B]
-        tau[start:start + k.size] = map_points(gravity, Q)[0]
+        stop = min(start + block, A * B)
+        a, b = np.divmod(np.arange(start, stop), B)
+        poses = Q[:stop - start]
+        poses[:, index[0]], poses[:, index[1]] = values[0][a], values[1][b]
+        if dense:
+            gravity([poses], [tau[start:stop]])
+        else:
+            tau[start:stop] = map_points(gravity.function, poses)[0]
     return tau.reshape(A, B, robot.nq)
 
 
@@ -260,12 +277,12 @@ def gravity_function(robot: Robot, offsets: dict | None = None) -> ca.Function:
 
 
 @functools.lru_cache(maxsize=8)
-def _compiled(robot: Robot, offsets: tuple) -> ca.Function:
+def _compiled(robot: Robot, offsets: tuple) -> CompiledPoints:
     """:func:`gravity_function` compiled, once per robot and offsets in a process (and on disk)."""
-    return compiled(gravity_function(robot, {link: np.array(h) for link, h in offsets}))
+    return compiled_points(gravity_function(robot, {link: np.array(h) for link, h in offsets}))
 
 
-def drive_effort_blocks(params: DriveParameters, tau: np.ndarray, block: int = BLOCK) -> DriveEffort:
+def drive_effort_blocks(params: DriveParameters, tau: np.ndarray, block: int = DRIVE_BLOCK) -> DriveEffort:
     """:func:`drive_effort` at holding for torques (..., len(params.driven)), in blocks of ``block``
     poses into the result arrays (temporaries the size of a block)."""
     n = tau.shape[-1]

@@ -31,7 +31,7 @@ import shlex
 import shutil
 import subprocess
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import casadi as ca
@@ -90,8 +90,14 @@ def compiled(fn: ca.Function) -> ca.Function:
     no C compiler is found or the cache folder cannot be written (a
     :class:`~rcm_kin.errors.CompilerFallbackWarning`). Raises
     :class:`RcmKinError` when the compiler fails on the code or the library does not load."""
+    return compiled_and_library(fn)[0]
+
+
+def compiled_and_library(fn: ca.Function) -> tuple[ca.Function, ctypes.CDLL | None]:
+    """:func:`compiled` and the library behind it, loaded with ``ctypes`` (None where ``fn`` runs
+    interpreted): its C entry points for callers that loop in C (:mod:`rcm_kin.symbolic.points`)."""
     found = loaded_library(fn)
-    return fn if found is None else _load(fn.name(), found[0])
+    return (fn, None) if found is None else (_load(fn.name(), found[0]), found[1])
 
 
 def loaded_library(fn: ca.Function) -> tuple[Path, ctypes.CDLL] | None:
@@ -238,6 +244,56 @@ def map_points(fn: ca.Function, *args: np.ndarray, chunk: int = 16384) -> tuple[
             buffer.set_res(i, memoryview(v))
         trigger()
     return tuple(_points_layout(fn.sparsity_out(i), nz) for i, nz in enumerate(nonzeros))
+
+
+@functools.lru_cache(maxsize=128)
+def _mapped(fn: ca.Function, n: int) -> ca.Function:
+    """``fn.map(n)``, kept for the process: CasADi builds a map in time linear in ``n`` (about as long
+    as evaluating it) and drops it with its last user."""
+    return fn.map(n)
+
+
+def map_points_into(fn: ca.Function, args: Sequence[np.ndarray], outs: Sequence[np.ndarray],
+                    chunk: int = 4096) -> None:
+    """``fn`` at N points, written into ``outs``: the numbers of :func:`map_points`, without building a
+    map or copying an output per call.
+
+    ``args``: (N, nnz_in_i) and ``outs``: (N, nnz_out_i) C-contiguous float64 arrays, one row per
+    point (dense inputs; the outputs' nonzeros, column-major). The points are evaluated by maps of
+    ``chunk`` points and, for the rest, of power-of-two sizes, each map built once per process."""
+    if chunk < 1:
+        raise RcmKinError(f"{fn.name()}: chunk must be at least 1 point, got {chunk}", parameter="chunk")
+    n = check_point_arrays(fn, args, outs)
+    start = 0
+    while start < n:
+        size = chunk if n - start >= chunk else 1 << ((n - start).bit_length() - 1)
+        buffer, trigger = _mapped(fn, size).buffer()
+        for _ in range((n - start) // size if size == chunk else 1):
+            for i, a in enumerate(args):
+                buffer.set_arg(i, memoryview(a[start:start + size]))
+            for i, o in enumerate(outs):
+                buffer.set_res(i, memoryview(o[start:start + size]))
+            trigger()
+            start += size
+
+
+def check_point_arrays(fn: ca.Function, args: Sequence[np.ndarray], outs: Sequence[np.ndarray]) -> int:
+    """The number of points N of ``args`` and ``outs`` for ``fn`` (:func:`map_points_into`), or an
+    error unless they are C-contiguous float64 arrays (N, nnz) of its dense inputs and (writeable)
+    outputs' nonzeros."""
+    if len(args) != fn.n_in() or len(outs) != fn.n_out():
+        raise RcmKinError(f"{fn.name()}: takes {fn.n_in()} inputs and gives {fn.n_out()} outputs, "
+                          f"got {len(args)} and {len(outs)}")
+    arrays = [(a, fn.nnz_in(i), f"input {i}", fn.sparsity_in(i).is_dense()) for i, a in enumerate(args)]
+    arrays += [(o, fn.nnz_out(i), f"output {i}", getattr(o, "flags", None) is not None and o.flags.writeable)
+               for i, o in enumerate(outs)]
+    n = len(arrays[0][0]) if arrays else 0
+    for a, nnz, what, ok in arrays:
+        if not (ok and isinstance(a, np.ndarray) and a.dtype == np.float64 and a.shape == (n, nnz)
+                and a.flags.c_contiguous):
+            raise RcmKinError(f"{fn.name()}: {what} needs a C-contiguous float64 array ({n}, {nnz}) "
+                              "(dense inputs, writeable outputs)")
+    return n
 
 
 def _points_layout(sparsity: ca.Sparsity, nz: np.ndarray) -> np.ndarray:
