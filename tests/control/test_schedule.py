@@ -186,9 +186,11 @@ def test_header_compiles_and_matches_python(tmp_path, design):
 
 
 def test_cli_dynamics_and_linearize_contracts(capsys, design):
-    assert main(["linearize", "psm", "--roll", "10", "--pitch=-5", "--insertion", "0.06", "--json"]) == 0
+    # --coulomb: the model dynamics evaluates (smoothed Coulomb friction), so that A is its Jacobian
+    assert main(["linearize", "psm", "--roll", "10", "--pitch=-5", "--insertion", "0.06", "--coulomb", "--json"]) == 0
     lin = json.loads(capsys.readouterr().out)
-    assert set(lin) == {"x0", "u0", "A", "B", "C", "D", "state", "input", "model", "input_unit"}
+    assert set(lin) == {"x0", "u0", "A", "B", "C", "D", "state", "input", "model", "input_unit", "coulomb_slope"}
+    assert lin["coulomb_slope"] is True
     assert lin["model"] == "calibration psm_drive.toml" and lin["input_unit"] == "PWM [counts]"
     x0, u0, A = np.array(lin["x0"]), np.array(lin["u0"]), np.array(lin["A"])
     np.testing.assert_allclose(x0[:3], [np.radians(10), np.radians(-5), 0.06])

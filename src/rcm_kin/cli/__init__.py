@@ -20,6 +20,7 @@ from rcm_kin.cli import (
     kinematics,
     robustness,
     safety,
+    schedule,
     simulation,
     statics,
     views,
@@ -31,7 +32,7 @@ from rcm_kin.identification.rosbag import DEFAULT_TOPIC, telemetry_topic
 # in the order of ``rcm-kin --help``
 COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
             statics.add_gravity, statics.add_torque_map, counterweights.add_counterweights, statics.add_calibrate,
-            control.add_dynamics, control.add_linearize, control.add_schedule,
+            control.add_dynamics, control.add_linearize, schedule.add_schedule,
             simulation.add_simulate, robustness.add_robustness, robustness.add_sweep,
             identification.add_sysid, identification.add_greybox,
             drive_train.add_identify, drive_train.add_predict, drive_train.add_excite,
