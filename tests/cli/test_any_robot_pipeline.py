@@ -114,3 +114,11 @@ def test_the_psm_only_commands_refuse_the_copy_in_one_line(robots):
         out = run(*args, ok=False)
         lines = out.stderr.strip().splitlines()
         assert out.returncode == 2 and len(lines) == 1 and lines[0].startswith("error:"), (args, out.stderr)
+
+
+def test_the_bundled_psm_by_the_path_of_its_sidecar_is_the_psm(tmp_path):
+    """The PSM-only commands take the bundled PSM by its sidecar's path as by its name."""
+    from rcm_kin.model.loading import urdf_dir
+
+    out = run("export", urdf_dir() / "psm.toml", "--c", tmp_path / "c", "--json")
+    assert {p.rsplit("/", 1)[-1] for p in json.loads(out.stdout)["files"]} == {"rcm_psm_model.h", "rcm_psm_model.c"}

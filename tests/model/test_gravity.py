@@ -133,7 +133,7 @@ def test_pwm_limits_are_the_firmwares_and_old_files_with_them_still_load(tmp_pat
 
 
 def test_bad_parameter_file(tmp_path):
-    (tmp_path / "bad.toml").write_text("[roll]\ngear_ratio = 20\n")
+    (tmp_path / "bad.toml").write_text("robot = \"psm\"\n[roll]\ngear_ratio = 20\n")
     with pytest.raises(RcmKinError, match=r"\[roll\] needs"):
         load_drive_parameters(tmp_path / "bad.toml")
 

@@ -92,9 +92,15 @@ def psm_robot() -> argparse.ArgumentParser:
                         "other robots are refused")
 
 
+def is_bundled_psm(robot: str) -> bool:
+    """Whether the robot argument names the bundled PSM: ``psm``, or a path to its own sidecar."""
+    return robot == "psm" or (str(robot).endswith(".toml") and load_robot(robot) is load_robot("psm"))
+
+
 def require_psm(args, message: str) -> None:
-    """User error ``message`` (``{robot}`` filled in) unless the robot argument is the PSM."""
-    if args.robot != "psm":
+    """User error ``message`` (``{robot}`` filled in) unless the robot argument is the bundled PSM
+    (by name, or by the path of its own files)."""
+    if not is_bundled_psm(args.robot):
         raise RcmKinError(message.format(robot=args.robot))
 
 

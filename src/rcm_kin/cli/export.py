@@ -11,6 +11,7 @@ from rcm_kin.cli.common import (
     add_params,
     any_robot,
     emit,
+    is_bundled_psm,
     new_output,
 )
 from rcm_kin.cli.packages import add_package_dirs, package_dirs
@@ -45,7 +46,7 @@ def add_export(sub) -> None:
 
 def _check_c(args) -> None:
     """``--c DIR``: the bundled PSM's, a folder path, no files overwritten without --force."""
-    if args.robot != "psm":
+    if not is_bundled_psm(args.robot):
         raise RcmKinError(f"--c writes the bundled PSM's holding PWM for its firmware; {args.robot} is not the "
                           "bundled psm (rcm-kin export psm --c DIR; --mjcf works for any robot)")
     if not str(args.c).strip():

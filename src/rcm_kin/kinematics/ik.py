@@ -98,11 +98,12 @@ def _check_turns(robot, frame: str, joints: tuple[str, ...]) -> None:
 def default_frame(robot, orientation: bool = False) -> str:
     """The frame an IK target places when none is named (see the module docstring)."""
     frames = robot.description.frames or (robot.reduced.frames[len(robot.reduced.frames) - 1].name,)
+    moved = [name for name in frames if moving_joints(robot, name)]     # a frame no joint moves has no IK
     if not orientation:
-        for name in reversed(frames):
-            if 0 < len(moving_joints(robot, name)) <= 3:
+        for name in reversed(moved):
+            if len(moving_joints(robot, name)) <= 3:
                 return name
-    return frames[-1]
+    return moved[-1] if moved else frames[-1]
 
 
 def inverse_kinematics(robot, position, rpy=None, frame: str | None = None, q0=None) -> IKSolution:

@@ -13,7 +13,7 @@ closed chain (constrained and reduced) and gravity. It names no particular robot
 """
 
 from rcm_kin.model.gravity import gravity_batch, gravity_torque
-from rcm_kin.model.joints import joint_table
+from rcm_kin.model.joints import joint_axes_world, joint_table  # noqa: F401 (joint_axes_world: kept importable)
 from rcm_kin.model.loading import (
            GRAVITY,
            build_robot,

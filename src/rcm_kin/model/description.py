@@ -119,8 +119,32 @@ def _vector3(entry: dict, key: str, where: str) -> np.ndarray:
 def _text(entry: dict, key: str, where: str) -> str:
     value = entry.get(key)
     if not isinstance(value, str) or not value:
-        raise RcmKinError(f"{where}: missing or empty '{key}'")
+        raise RcmKinError(f"{where}: missing or empty '{key}'" if key not in entry or value == "" else
+                          f"{where}: '{key}' must be a text (a name), got {value!r}"[:200])
     return value
+
+
+SIDECAR_KEYS = {"robot", "urdf", "actuated", "frames", "counterweights", "drive", "loop", "passive", "rcm", "base"}
+ENTRY_KEYS = {"loop": {"name", "link_a", "point_a", "link_b", "point_b", "plane_normal"},
+              "passive": {"joint", "follows", "multiplier", "offset"},
+              "rcm": {"shaft_frame", "joints", "base_frame"}}
+
+
+def _check_keys(raw: dict, where: str) -> None:
+    """Every key of the sidecar is one it knows: a misspelt key (``drvie``, ``[bsae]``) would
+    otherwise drop a calibration or a tilt without a word."""
+    if unknown := sorted(set(raw) - SIDECAR_KEYS):
+        raise RcmKinError(f"{where}: unknown keys {unknown} (known: {', '.join(sorted(SIDECAR_KEYS))})")
+    for table, known in ENTRY_KEYS.items():
+        entries = raw.get(table, [])
+        entries = [entries] if isinstance(entries, dict) else entries
+        if not isinstance(entries, list) or not all(isinstance(e, dict) for e in entries):
+            form = "a table [rcm]" if table == "rcm" else f"[[{table}]] tables"
+            raise RcmKinError(f"{where}: '{table}' must be {form}")
+        for i, entry in enumerate(entries):
+            if unknown := sorted(set(entry) - known):
+                at = f"[{table}]" if table == "rcm" else f"{table} {i + 1}"
+                raise RcmKinError(f"{where}: {at}: unknown keys {unknown} (known: {', '.join(sorted(known))})")
 
 
 def read_description(path: str | Path, text: str | None = None) -> RobotDescription:
@@ -130,6 +154,7 @@ def read_description(path: str | Path, text: str | None = None) -> RobotDescript
     raw = read_toml(path, "robot description", text)
 
     where = str(path)
+    _check_keys(raw, where)
     urdf = path.parent / _text(raw, "urdf", where)
     if not urdf.exists():
         raise RcmKinError(f"{where}: URDF file {urdf} does not exist")
