@@ -26,7 +26,8 @@ from rcm_kin.dynamics.state_space import PWM_UNIT, DrivenDynamics, holding_pwm
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
-from rcm_kin.symbolic.compiled import compiled, map_points
+from rcm_kin.symbolic.compiled import compiled, map_points, map_points_into
+from rcm_kin.symbolic.points import CompiledPoints, compiled_points
 
 if TYPE_CHECKING:
     import control
@@ -140,7 +141,7 @@ def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = 
     the applied input cancels gravity and the Coriolis terms are quadratic in ``v``), from the
     compiled ``(g, M, dg/dq)`` and batched NumPy: cheaper for many joints. Default: ``"ad"`` for a
     model with a drive (the PSM's tables, bit for bit as before), ``"rest"`` for a torque-input model."""
-    Q = np.atleast_2d(np.asarray(Q, dtype=float))
+    Q = np.ascontiguousarray(np.atleast_2d(np.asarray(Q, dtype=float)))
     n = len(model.joints)
     if Q.ndim != 2 or Q.shape[1] != n or not np.all(np.isfinite(Q)):
         raise RcmKinError(f"poses must be finite rows of {n} values ({', '.join(model.joints)}), got shape {Q.shape}")
@@ -158,18 +159,44 @@ def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = 
 
 
 def _rest_grid(model: DrivenDynamics, Q: np.ndarray, chunk: int, compile: bool) -> LinearizationGrid:
-    """:func:`linearize_grid` by the closed form at rest."""
-    n, drive = len(model.joints), model.drive
-    g, M, dg = map_points(_compiled_rest(model) if compile else model.rest, Q, chunk=chunk)
+    """:func:`linearize_grid` by the closed form at rest: ``(g, M, dg/dq)`` of every pose written in
+    place (one C loop where compiled, :func:`~rcm_kin.symbolic.points.compiled_points`), then
+    batched NumPy."""
+    n, drive, N = len(model.joints), model.drive, len(Q)
+    rest = model.rest
+    layouts = [_Layout(rest.sparsity_out(i), N) for i in range(rest.n_out())]
+    if compile:
+        _compiled_rest(model)([Q], [lay.nonzeros for lay in layouts])
+    else:
+        map_points_into(rest, [Q], [lay.nonzeros for lay in layouts], chunk=chunk)
+    g, M, dg = (lay.dense() for lay in layouts)
     damping = drive.damping + (drive.coulomb / drive.coulomb_velocity if model.coulomb else 0.0)
     Minv = np.linalg.inv(M)
-    A = np.zeros((len(Q), 2 * n, 2 * n))
+    A = np.zeros((N, 2 * n, 2 * n))
     A[:, :n, n:] = np.eye(n)
     A[:, n:, :n] = -Minv @ dg
     A[:, n:, n:] = -Minv * damping
-    B = np.zeros((len(Q), 2 * n, n))
+    B = np.zeros((N, 2 * n, n))
     B[:, n:] = Minv * drive.input_gain
     return LinearizationGrid(Q, g / drive.input_gain, A, B)
+
+
+class _Layout:
+    """One output of N points: :attr:`nonzeros` (N, nnz) to write into, :meth:`dense` the values as
+    (N, rows) or (N, rows, cols) (a view where the output is dense, as
+    :func:`~rcm_kin.symbolic.compiled.map_points` lays them out)."""
+
+    def __init__(self, sparsity: ca.Sparsity, points: int):
+        self.sparsity, self.nonzeros = sparsity, np.empty((points, sparsity.nnz()))
+
+    def dense(self) -> np.ndarray:
+        rows, cols, nz = self.sparsity.size1(), self.sparsity.size2(), self.nonzeros
+        if self.sparsity.is_dense():
+            return nz if cols == 1 else nz.reshape(len(nz), cols, rows).transpose(0, 2, 1)
+        r, c = (np.array(x, dtype=int) for x in self.sparsity.get_triplet())
+        out = np.zeros((len(nz), rows, cols))
+        out[:, r, c] = nz
+        return out[:, :, 0] if cols == 1 else out
 
 
 @functools.lru_cache(maxsize=8)
@@ -179,9 +206,9 @@ def _compiled(model: DrivenDynamics) -> tuple[ca.Function, ca.Function]:
 
 
 @functools.lru_cache(maxsize=8)
-def _compiled_rest(model: DrivenDynamics) -> ca.Function:
-    """``q -> (g, M, dg/dq)``, compiled (built once, then loaded from the cache)."""
-    return compiled(model.rest)
+def _compiled_rest(model: DrivenDynamics) -> CompiledPoints:
+    """``q -> (g, M, dg/dq)``, compiled (built once, then loaded from the cache), at many poses in one C loop."""
+    return compiled_points(model.rest)
 
 
 def linearize_finite_differences(model: DrivenDynamics, x, u, step: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
