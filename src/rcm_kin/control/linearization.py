@@ -27,6 +27,7 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.symbolic.compiled import compiled, map_points, map_points_into
+from rcm_kin.symbolic.linalg import spd_inverse
 from rcm_kin.symbolic.points import CompiledPoints, compiled_points
 
 if TYPE_CHECKING:
@@ -159,44 +160,41 @@ def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = 
 
 
 def _rest_grid(model: DrivenDynamics, Q: np.ndarray, chunk: int, compile: bool) -> LinearizationGrid:
-    """:func:`linearize_grid` by the closed form at rest: ``(g, M, dg/dq)`` of every pose written in
-    place (one C loop where compiled, :func:`~rcm_kin.symbolic.points.compiled_points`), then
-    batched NumPy."""
-    n, drive, N = len(model.joints), model.drive, len(Q)
-    rest = model.rest
-    layouts = [_Layout(rest.sparsity_out(i), N) for i in range(rest.n_out())]
+    """:func:`linearize_grid` by the closed form at rest: :func:`rest_linearization` at every pose,
+    written into the result arrays (one C loop where compiled,
+    :func:`~rcm_kin.symbolic.points.compiled_points`; CasADi maps of ``chunk`` poses where not)."""
+    n, N = len(model.joints), len(Q)
+    u0, A, B = np.empty((N, n)), np.empty((N, 2 * n, 2 * n)), np.empty((N, 2 * n, n))
+    outs = [u0, A.reshape(N, -1), B.reshape(N, -1)]           # row-major A, B = column-major A^T, B^T
     if compile:
-        _compiled_rest(model)([Q], [lay.nonzeros for lay in layouts])
+        _compiled_rest(model)([Q], outs)
     else:
-        map_points_into(rest, [Q], [lay.nonzeros for lay in layouts], chunk=chunk)
-    g, M, dg = (lay.dense() for lay in layouts)
+        map_points_into(rest_linearization(model), [Q], outs, chunk=chunk)
+    bad = ~np.isfinite(B[:, n:]).all(axis=(1, 2))
+    if np.any(bad):
+        raise RcmKinError(f"the mass matrix is not positive definite at pose {int(np.argmax(bad))} "
+                          f"({', '.join(model.joints)} = {np.array2string(Q[np.argmax(bad)], precision=4)})")
+    return LinearizationGrid(Q, u0, A, B)
+
+
+@functools.lru_cache(maxsize=8)
+def rest_linearization(model: DrivenDynamics) -> ca.Function:
+    """``q -> (u0, A^T, B^T)``: the holding input and the closed form at rest of
+    :func:`linearize_grid` (``method="rest"``) as one CasADi function of the pose (dense outputs,
+    transposed so that their column-major nonzeros are ``A`` and ``B`` row by row).
+    ``A = [[0, I], [-M^-1 dg/dq, -M^-1 D]]``, ``B = [0; M^-1 K]`` from ``model.rest``, ``M^-1`` by
+    its Cholesky factor (:func:`~rcm_kin.symbolic.linalg.spd_inverse`), ``D`` the drive's damping
+    and Coulomb slope at rest, ``K`` its gains."""
+    n, drive = len(model.joints), model.drive
+    q = ca.SX.sym("q", n)
+    g, M, dg = model.rest(q)
+    Minv = spd_inverse(M)
     damping = drive.damping + (drive.coulomb / drive.coulomb_velocity if model.coulomb else 0.0)
-    Minv = np.linalg.inv(M)
-    A = np.zeros((N, 2 * n, 2 * n))
-    A[:, :n, n:] = np.eye(n)
-    A[:, n:, :n] = -Minv @ dg
-    A[:, n:, n:] = -Minv * damping
-    B = np.zeros((N, 2 * n, n))
-    B[:, n:] = Minv * drive.input_gain
-    return LinearizationGrid(Q, g / drive.input_gain, A, B)
-
-
-class _Layout:
-    """One output of N points: :attr:`nonzeros` (N, nnz) to write into, :meth:`dense` the values as
-    (N, rows) or (N, rows, cols) (a view where the output is dense, as
-    :func:`~rcm_kin.symbolic.compiled.map_points` lays them out)."""
-
-    def __init__(self, sparsity: ca.Sparsity, points: int):
-        self.sparsity, self.nonzeros = sparsity, np.empty((points, sparsity.nnz()))
-
-    def dense(self) -> np.ndarray:
-        rows, cols, nz = self.sparsity.size1(), self.sparsity.size2(), self.nonzeros
-        if self.sparsity.is_dense():
-            return nz if cols == 1 else nz.reshape(len(nz), cols, rows).transpose(0, 2, 1)
-        r, c = (np.array(x, dtype=int) for x in self.sparsity.get_triplet())
-        out = np.zeros((len(nz), rows, cols))
-        out[:, r, c] = nz
-        return out[:, :, 0] if cols == 1 else out
+    zero, eye = ca.SX(n, n), ca.SX.eye(n)
+    A = ca.vertcat(ca.horzcat(zero, eye), ca.horzcat(-ca.mtimes(Minv, dg), -ca.mtimes(Minv, ca.diag(damping))))
+    B = ca.vertcat(zero, ca.mtimes(Minv, ca.diag(drive.input_gain)))
+    return ca.Function("rest_linearization", [q], [g / ca.DM(drive.input_gain), ca.densify(A.T), ca.densify(B.T)],
+                       ["q"], ["u0", "At", "Bt"])
 
 
 @functools.lru_cache(maxsize=8)
@@ -207,8 +205,8 @@ def _compiled(model: DrivenDynamics) -> tuple[ca.Function, ca.Function]:
 
 @functools.lru_cache(maxsize=8)
 def _compiled_rest(model: DrivenDynamics) -> CompiledPoints:
-    """``q -> (g, M, dg/dq)``, compiled (built once, then loaded from the cache), at many poses in one C loop."""
-    return compiled_points(model.rest)
+    """:func:`rest_linearization` compiled (built once, then loaded from the cache), at many poses in one C loop."""
+    return compiled_points(rest_linearization(model))
 
 
 def linearize_finite_differences(model: DrivenDynamics, x, u, step: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
