@@ -87,3 +87,16 @@ def test_mass_matrix_not_positive_definite_is_an_error(mtm):
     for compile in (True, False):
         with pytest.raises(RcmKinError, match="mass matrix is not positive definite at pose 0"):
             linearize_grid(broken, np.zeros((3, len(model.joints))), compile=compile)
+
+
+def test_the_failing_pose_is_named(mtm):
+    model = driven_dynamics(mtm)
+    q = ca.SX.sym("q", len(model.joints))
+    g, M, dg = model.rest(q)
+    flipped = ca.if_else(q[0] > 0.5, -1.0, 1.0) * M                   # not definite beyond j1 = 0.5 rad
+    broken = dataclasses.replace(model, rest=ca.Function("rest", [q], [g, flipped, dg], ["q"], ["g", "M", "dg"]))
+    Q = np.zeros((5, len(model.joints)))
+    Q[3:, 0] = 0.6
+    with pytest.raises(RcmKinError, match="at pose 3 "):
+        linearize_grid(broken, Q)
+    assert np.isfinite(linearize_grid(broken, Q[:3]).B).all()

@@ -139,9 +139,11 @@ def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = 
     ``method``: ``"ad"``, CasADi's Jacobians of ``forward`` at ``(x0, u0)``; ``"rest"``, the
     closed form at an equilibrium, ``A = [[0, I], [-M^-1 dg/dq, -M^-1 D]]``, ``B = [0; M^-1 K]``
     (``D`` the drive's damping and Coulomb slope at rest, ``K`` its gains; exact at rest, where
-    the applied input cancels gravity and the Coriolis terms are quadratic in ``v``), from the
-    compiled ``(g, M, dg/dq)`` and batched NumPy: cheaper for many joints. Default: ``"ad"`` for a
-    model with a drive (the PSM's tables, bit for bit as before), ``"rest"`` for a torque-input model."""
+    the applied input cancels gravity and the Coriolis terms are quadratic in ``v``):
+    :func:`rest_linearization`, ``M^-1`` by its Cholesky factor, compiled and run over the poses in
+    one C loop into the result arrays (about 1 us a pose for 7 joints; ``chunk`` matters only
+    interpreted): cheaper for many joints. Default: ``"ad"`` for a model with a drive (the PSM's
+    tables, bit for bit as before), ``"rest"`` for a torque-input model."""
     Q = np.ascontiguousarray(np.atleast_2d(np.asarray(Q, dtype=float)))
     n = len(model.joints)
     if Q.ndim != 2 or Q.shape[1] != n or not np.all(np.isfinite(Q)):
@@ -170,10 +172,10 @@ def _rest_grid(model: DrivenDynamics, Q: np.ndarray, chunk: int, compile: bool) 
         _compiled_rest(model)([Q], outs)
     else:
         map_points_into(rest_linearization(model), [Q], outs, chunk=chunk)
-    bad = ~np.isfinite(B[:, n:]).all(axis=(1, 2))
-    if np.any(bad):
-        raise RcmKinError(f"the mass matrix is not positive definite at pose {int(np.argmax(bad))} "
-                          f"({', '.join(model.joints)} = {np.array2string(Q[np.argmax(bad)], precision=4)})")
+    if not np.isfinite(B.sum()):                              # M^-1 in B: NaN or inf where M is not definite
+        bad = int(np.argmin(np.isfinite(B).all(axis=(1, 2))))
+        raise RcmKinError(f"the mass matrix is not positive definite at pose {bad} "
+                          f"({', '.join(model.joints)} = {np.array2string(Q[bad], precision=4)})")
     return LinearizationGrid(Q, u0, A, B)
 
 
