@@ -26,7 +26,9 @@ from rcm_kin.dynamics.state_space import PWM_UNIT, DrivenDynamics, holding_pwm
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
-from rcm_kin.symbolic.compiled import compiled, map_points
+from rcm_kin.symbolic.compiled import compiled, map_points, map_points_into
+from rcm_kin.symbolic.linalg import spd_inverse
+from rcm_kin.symbolic.points import CompiledPoints, compiled_points
 
 if TYPE_CHECKING:
     import control
@@ -137,10 +139,12 @@ def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = 
     ``method``: ``"ad"``, CasADi's Jacobians of ``forward`` at ``(x0, u0)``; ``"rest"``, the
     closed form at an equilibrium, ``A = [[0, I], [-M^-1 dg/dq, -M^-1 D]]``, ``B = [0; M^-1 K]``
     (``D`` the drive's damping and Coulomb slope at rest, ``K`` its gains; exact at rest, where
-    the applied input cancels gravity and the Coriolis terms are quadratic in ``v``), from the
-    compiled ``(g, M, dg/dq)`` and batched NumPy: cheaper for many joints. Default: ``"ad"`` for a
-    model with a drive (the PSM's tables, bit for bit as before), ``"rest"`` for a torque-input model."""
-    Q = np.atleast_2d(np.asarray(Q, dtype=float))
+    the applied input cancels gravity and the Coriolis terms are quadratic in ``v``):
+    :func:`rest_linearization`, ``M^-1`` by its Cholesky factor, compiled and run over the poses in
+    one C loop into the result arrays (about 1 us a pose for 7 joints; ``chunk`` matters only
+    interpreted): cheaper for many joints. Default: ``"ad"`` for a model with a drive (the PSM's
+    tables, bit for bit as before), ``"rest"`` for a torque-input model."""
+    Q = np.ascontiguousarray(np.atleast_2d(np.asarray(Q, dtype=float)))
     n = len(model.joints)
     if Q.ndim != 2 or Q.shape[1] != n or not np.all(np.isfinite(Q)):
         raise RcmKinError(f"poses must be finite rows of {n} values ({', '.join(model.joints)}), got shape {Q.shape}")
@@ -158,18 +162,41 @@ def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = 
 
 
 def _rest_grid(model: DrivenDynamics, Q: np.ndarray, chunk: int, compile: bool) -> LinearizationGrid:
-    """:func:`linearize_grid` by the closed form at rest."""
+    """:func:`linearize_grid` by the closed form at rest: :func:`rest_linearization` at every pose,
+    written into the result arrays (one C loop where compiled,
+    :func:`~rcm_kin.symbolic.points.compiled_points`; CasADi maps of ``chunk`` poses where not)."""
+    n, N = len(model.joints), len(Q)
+    u0, A, B = np.empty((N, n)), np.empty((N, 2 * n, 2 * n)), np.empty((N, 2 * n, n))
+    outs = [u0, A.reshape(N, -1), B.reshape(N, -1)]           # row-major A, B = column-major A^T, B^T
+    if compile:
+        _compiled_rest(model)([Q], outs)
+    else:
+        map_points_into(rest_linearization(model), [Q], outs, chunk=chunk)
+    if not np.isfinite(B.sum()):                              # M^-1 in B: NaN or inf where M is not definite
+        bad = int(np.argmin(np.isfinite(B).all(axis=(1, 2))))
+        raise RcmKinError(f"the mass matrix is not positive definite at pose {bad} "
+                          f"({', '.join(model.joints)} = {np.array2string(Q[bad], precision=4)})")
+    return LinearizationGrid(Q, u0, A, B)
+
+
+@functools.lru_cache(maxsize=8)
+def rest_linearization(model: DrivenDynamics) -> ca.Function:
+    """``q -> (u0, A^T, B^T)``: the holding input and the closed form at rest of
+    :func:`linearize_grid` (``method="rest"``) as one CasADi function of the pose (dense outputs,
+    transposed so that their column-major nonzeros are ``A`` and ``B`` row by row).
+    ``A = [[0, I], [-M^-1 dg/dq, -M^-1 D]]``, ``B = [0; M^-1 K]`` from ``model.rest``, ``M^-1`` by
+    its Cholesky factor (:func:`~rcm_kin.symbolic.linalg.spd_inverse`), ``D`` the drive's damping
+    and Coulomb slope at rest, ``K`` its gains."""
     n, drive = len(model.joints), model.drive
-    g, M, dg = map_points(_compiled_rest(model) if compile else model.rest, Q, chunk=chunk)
+    q = ca.SX.sym("q", n)
+    g, M, dg = model.rest(q)
+    Minv = spd_inverse(M)
     damping = drive.damping + (drive.coulomb / drive.coulomb_velocity if model.coulomb else 0.0)
-    Minv = np.linalg.inv(M)
-    A = np.zeros((len(Q), 2 * n, 2 * n))
-    A[:, :n, n:] = np.eye(n)
-    A[:, n:, :n] = -Minv @ dg
-    A[:, n:, n:] = -Minv * damping
-    B = np.zeros((len(Q), 2 * n, n))
-    B[:, n:] = Minv * drive.input_gain
-    return LinearizationGrid(Q, g / drive.input_gain, A, B)
+    zero, eye = ca.SX(n, n), ca.SX.eye(n)
+    A = ca.vertcat(ca.horzcat(zero, eye), ca.horzcat(-ca.mtimes(Minv, dg), -ca.mtimes(Minv, ca.diag(damping))))
+    B = ca.vertcat(zero, ca.mtimes(Minv, ca.diag(drive.input_gain)))
+    return ca.Function("rest_linearization", [q], [g / ca.DM(drive.input_gain), ca.densify(A.T), ca.densify(B.T)],
+                       ["q"], ["u0", "At", "Bt"])
 
 
 @functools.lru_cache(maxsize=8)
@@ -179,9 +206,9 @@ def _compiled(model: DrivenDynamics) -> tuple[ca.Function, ca.Function]:
 
 
 @functools.lru_cache(maxsize=8)
-def _compiled_rest(model: DrivenDynamics) -> ca.Function:
-    """``q -> (g, M, dg/dq)``, compiled (built once, then loaded from the cache)."""
-    return compiled(model.rest)
+def _compiled_rest(model: DrivenDynamics) -> CompiledPoints:
+    """:func:`rest_linearization` compiled (built once, then loaded from the cache), at many poses in one C loop."""
+    return compiled_points(rest_linearization(model))
 
 
 def linearize_finite_differences(model: DrivenDynamics, x, u, step: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
