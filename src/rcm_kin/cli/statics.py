@@ -70,7 +70,7 @@ def add_torque_map(sub) -> None:
                    help="tables as csv (text, 9 decimals; default) or npz (NumPy, full precision, one array per "
                         "CSV column: np.load; fastest for large maps)")
     p.add_argument("--no-figures", action="store_true", help="write the tables only, not the PNG figures")
-    add_json(p, '{"files": [...], "poses": N} (--grid: also "joints", "model")')
+    add_json(p, '{"files": [...], "poses": N, "model"} (--grid: also "joints")')
     p.set_defaults(func=cmd_torque_map)
 
 
