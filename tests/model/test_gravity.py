@@ -230,7 +230,7 @@ def test_torque_map_npz_holds_the_csv_numbers(tmp_path, capsys):
     assert main(["torque-map", "psm", *grid, "--out", str(tmp_path / "npz"), "--format", "npz", "--no-figures"]) == 0
     out = json.loads(capsys.readouterr().out.splitlines()[-1])
     assert out == {"files": [str(tmp_path / "npz" / "torque_map.npz"), str(tmp_path / "npz" / "insertion_map.npz")],
-                   "poses": 35}
+                   "poses": 35, "model": "calibration psm_drive.toml"}
     assert sorted(p.name for p in (tmp_path / "npz").iterdir()) == ["insertion_map.npz", "torque_map.npz"]
     for name, poses in (("torque_map", 35), ("insertion_map", 6 * 81)):
         text = (tmp_path / "csv" / f"{name}.csv").read_bytes()

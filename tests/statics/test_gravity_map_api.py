@@ -66,8 +66,10 @@ def test_the_drive_defaults_to_the_shipped_set():
     a = rk.gravity_map(psm, None, [0.0], [10.0], [0.1])
     b = rk.gravity_map(psm, rk.load_drive_parameters(), [0.0], [10.0], [0.1])
     np.testing.assert_array_equal(a.effort.pwm, b.effort.pwm)
-    with pytest.raises(rk.RcmKinError, match="drive must be DriveParameters"):
-        rk.gravity_map(psm, "psm_drive.toml", [0.0], [10.0], [0.1])
+    with pytest.raises(rk.RcmKinError, match="no drive parameter file at psm_drive.toml"):
+        rk.gravity_map(psm, "psm_drive.toml", [0.0], [10.0], [0.1])      # a path: read (here: not found)
+    with pytest.raises(rk.RcmKinError, match="`drive` must be DriveParameters or the path of a drive file"):
+        rk.gravity_map(psm, 42, [0.0], [10.0], [0.1])
 
 
 def test_one_joint_by_name(tmap):
@@ -97,7 +99,7 @@ def test_a_robot_without_the_driven_joints_is_refused():
 
 def test_the_shipped_calibration_is_not_applied_to_another_robot(tmp_path):
     """A renamed copy of the PSM gets no default drive parameters: the shipped calibration belongs
-    to the bundled robot, and the map says so instead of applying it silently."""
+    to the bundled robot, and the map says so instead of applying it silently, also when it is given."""
     import shutil
 
     from rcm_kin.model.loading import urdf_dir
@@ -107,6 +109,7 @@ def test_the_shipped_calibration_is_not_applied_to_another_robot(tmp_path):
     text = text.replace('drive = "psm_drive.toml"\n', "")
     (tmp_path / "mypsm.toml").write_text(text)
     mine = rk.load_robot(str(tmp_path / "mypsm.toml"))
-    with pytest.raises(rk.RcmKinError, match="calibrated on the bundled psm, not on mypsm: give `drive`"):
+    with pytest.raises(rk.RcmKinError, match="mypsm has no drive .*: give `drive`"):
         rk.gravity_map(mine, roll_deg=[0.0], pitch_deg=[0.0])
-    rk.gravity_map(mine, rk.load_drive_parameters(), roll_deg=[0.0], pitch_deg=[0.0])     # named: it runs
+    with pytest.raises(rk.RcmKinError, match="describes robot 'psm', not 'mypsm'"):     # given: checked too
+        rk.gravity_map(mine, rk.load_drive_parameters(), roll_deg=[0.0], pitch_deg=[0.0])

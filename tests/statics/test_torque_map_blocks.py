@@ -12,7 +12,7 @@ import pytest
 
 import rcm_kin as rk
 from rcm_kin.dynamics.drive import DriveEffort, drive_effort
-from rcm_kin.statics import holding
+from rcm_kin.statics import holding, maps
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +45,7 @@ def test_blocks_equal_the_compiled_gravity_pose_by_pose(mtm, block):
 def test_the_drive_in_blocks_equals_one_drive_effort_call(psm, params):
     tmap = rk.torque_map(psm, {"roll": np.radians(np.linspace(-30, 30, 71)),
                                "pitch": np.radians(np.linspace(-20, 20, 67))}, [0, 0, 0.1, 0, 0, 0, 0])
-    assert tmap.poses > holding.DRIVE_BLOCK                 # several blocks and a remainder
+    assert tmap.poses > maps.DRIVE_BLOCK                    # several blocks and a remainder
     driven = tmap.tau[..., [psm.actuated.index(j) for j in params.driven]]
     whole = drive_effort(params, driven.reshape(-1, 3))
     for f in fields(DriveEffort):

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rcm_kin.cli.common import RAW, add_json, add_params, any_robot, emit, finite, floats
-from rcm_kin.cli.statics import joint_assignments, to_si
+from rcm_kin.cli.common import RAW, add_json, add_params, any_robot, emit, finite
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model import load_robot
 
@@ -31,38 +30,27 @@ def add_counterweights(sub) -> None:
                    help="bound on each coordinate of the position, m (default 0.3)")
     add_params(p, "drive parameter TOML of this robot (default: its own drive file, else torque in N m)")
     add_json(p, '{"model", "counterweights": [{"link", "mount", "mass_kg", "position_m", "as_built_m", '
-                '"distance_m", "joints", "unit", "rms", "peak", "rms_as_built", "rms_without", "rank"}]}')
+                '"distance_m", "joints", "unit", "units", "rms", "peak", "rms_as_built", "rms_without", "rank"}]}')
     p.set_defaults(func=cmd_counterweights)
 
 
 def cmd_counterweights(args) -> None:
+    from rcm_kin.cli.statics import grid_and_pose
     from rcm_kin.statics.counterweights import place_counterweight
-    from rcm_kin.statics.holding import check_actuated, default_pose
-    from rcm_kin.statics.maps import parse_range, resolve_drive
+    from rcm_kin.statics.maps import resolve_drive
 
     robot = load_robot(args.robot)
     if not robot.description.counterweights:
         raise RcmKinError(f"{robot.name}'s sidecar marks no counterweight link (its `counterweights` list)")
     links = robot.description.counterweights if args.link is None else (args.link,)
     drive = resolve_drive(robot, args.params)
-    grid = {}
-    for name, text in joint_assignments(args.grid, "--grid"):
-        check_actuated(robot, name)
-        if name in grid:
-            raise RcmKinError(f"--grid names {name} twice: give two different joints")
-        grid[name] = to_si(robot, name, np.linspace(*parse_range(text, f"--grid {name}")))
-    if len(grid) != 2:
-        raise RcmKinError(f"--grid takes two joints J=LO:HI:N J=LO:HI:N, got {len(grid)}")
-    q = default_pose(robot)
-    for name, text in joint_assignments(args.at or [], "--at"):
-        check_actuated(robot, name)
-        q[robot.actuated.index(name)] = to_si(robot, name, floats([text], f"--at {name}")[0])
+    grid, q = grid_and_pose(robot, args.grid, args.at)     # size, units and --at as torque-map's
     designs = [place_counterweight(robot, link, grid, q, args.mass, drive, max_distance=args.max_distance)
                for link in links]
     payload = {"model": designs[0].model, "counterweights": [{
         "link": d.link, "mount": d.mount, "mass_kg": d.mass, "position_m": d.position.tolist(),
         "as_built_m": d.as_built.tolist(), "distance_m": d.distance, "joints": list(d.joints), "unit": d.unit,
-        "rms": d.rms.tolist(), "peak": d.peak.tolist(), "rms_as_built": d.rms_as_built.tolist(),
+        "units": list(d.units), "rms": d.rms.tolist(), "peak": d.peak.tolist(), "rms_as_built": d.rms_as_built.tolist(),
         "rms_without": d.rms_without.tolist(), "rank": d.rank} for d in designs]}
     lines = []
     for d in designs:
@@ -72,8 +60,8 @@ def cmd_counterweights(args) -> None:
         if np.any(np.isclose(np.abs(d.position), args.max_distance)):
             lines.append(f"  (at the --max-distance bound {args.max_distance:g} m: a heavier counterweight would sit "
                          "closer)")
-        lines += [f"  {j:16} RMS {w:9.4f} without, {b:9.4f} as built, {r:9.4f} placed  ({d.unit})"
-                  for j, w, b, r in zip(d.joints, d.rms_without, d.rms_as_built, d.rms)]
+        lines += [f"  {j:16} RMS {w:9.4f} without, {b:9.4f} as built, {r:9.4f} placed  ({u})"
+                  for j, w, b, r, u in zip(d.joints, d.rms_without, d.rms_as_built, d.rms, d.units)]
         if d.rank < 3:
             lines.append(f"  (the grid fixes {d.rank} of the 3 coordinates: the minimum-norm position is given)")
     lines.append(f"model: {designs[0].model}")

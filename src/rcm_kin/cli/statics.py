@@ -25,7 +25,7 @@ from rcm_kin.model import load_robot
 
 PSM_GRID_DEFAULT = "-30:30:61"
 EPILOG_TORQUE_MAP = ("example: rcm-kin torque-map psm --roll=-30:30:61 --pitch=-30:30:61 --insertion 0.08 --out maps\n"
-                     "any robot: rcm-kin torque-map mtm --grid j2=-40:60:51 j3=-30:80:56 --at j1=10 --out maps\n"
+                     "any robot: rcm-kin torque-map mtm --grid j1=-60:60:61 j3=-30:80:56 --out maps  (pitch axes)\n"
                      "large: rcm-kin torque-map psm --roll=-30:30:1001 --pitch=-30:30:1001 --format npz --out maps\n"
                      "(write negative ranges with =, as argparse reads a leading - as an option)")
 
@@ -51,7 +51,7 @@ def add_torque_map(sub) -> None:
                        parents=[any_robot()], epilog=EPILOG_TORQUE_MAP, formatter_class=RAW)
     p.add_argument("--grid", nargs="+", metavar="J=LO:HI:N",
                    help="any robot: the two actuated joints of the map and their grids, LO:HI:N in degrees for "
-                        "revolute joints, metres for prismatic (e.g. j2=-40:60:51 j3=-30:80:56); the other joints "
+                        "revolute joints, metres for prismatic (e.g. j1=-60:60:61 j3=-30:80:56); the other joints "
                         "at zero (inside their limits) or --at")
     p.add_argument("--at", nargs="+", metavar="J=VALUE",
                    help="with --grid: values of other actuated joints (degrees for revolute, metres for prismatic)")
@@ -70,7 +70,7 @@ def add_torque_map(sub) -> None:
                    help="tables as csv (text, 9 decimals; default) or npz (NumPy, full precision, one array per "
                         "CSV column: np.load; fastest for large maps)")
     p.add_argument("--no-figures", action="store_true", help="write the tables only, not the PNG figures")
-    add_json(p, '{"files": [...], "poses": N} (--grid: also "joints", "model")')
+    add_json(p, '{"files": [...], "poses": N, "model"} (--grid: also "joints")')
     p.set_defaults(func=cmd_torque_map)
 
 
@@ -118,13 +118,12 @@ def cmd_torque_map(args) -> None:
 
 
 def psm_torque_map(args) -> None:
-    from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.statics.maps import check_map_size, parse_range, write_gravity_maps
+    from rcm_kin.statics.maps import check_map_size, map_drive, parse_range, write_gravity_maps
 
     require_psm(args, "the --roll/--pitch/--insertion form is the bundled PSM's: for {robot} give the grid, e.g. "
                       "rcm-kin torque-map {robot} --grid J=LO:HI:N J=LO:HI:N --out DIR")
     robot = load_robot("psm", counterweights=not args.no_counterweights)
-    drive = load_drive_parameters(args.params)
+    drive = map_drive(robot, args.params)            # --params of another robot: one line, nothing written
     roll_text, pitch_text = (t if t is not None else PSM_GRID_DEFAULT for t in (args.roll, args.pitch))
     insertion = HOME_INSERTION if args.insertion is None else args.insertion
     roll, pitch = (np.linspace(*parse_range(t, w)) for t, w in ((roll_text, "--roll"), (pitch_text, "--pitch")))
@@ -133,39 +132,51 @@ def psm_torque_map(args) -> None:
         robot.check_limits(robot.check_q([*np.radians(corner), insertion], allow_short=True))
     gmap, files = write_gravity_maps(robot, drive, roll, pitch, insertion, output_folder(args.out),
                                      progress=progress_wanted(args), table=args.format, figures=not args.no_figures)
-    payload = {"files": [str(f) for f in files], "poses": int(gmap.effort.tau[..., 0].size)}
-    emit(args, payload, "\n".join(f"wrote {f}" for f in files))
+    payload = {"files": [str(f) for f in files], "poses": int(gmap.effort.tau[..., 0].size), "model": drive.model}
+    emit(args, payload, "\n".join([*(f"wrote {f}" for f in files), f"model: {drive.model}"]))
 
 
 def grid_torque_map(args) -> None:
-    from rcm_kin.statics.holding import check_actuated, default_pose, torque_map, write_torque_map
-    from rcm_kin.statics.maps import check_map_size, parse_range, resolve_drive
+    from rcm_kin.statics.holding import torque_map, write_torque_map
+    from rcm_kin.statics.maps import resolve_drive
 
     if any(x is not None for x in (args.roll, args.pitch, args.insertion)):
         raise RcmKinError("--grid replaces --roll/--pitch/--insertion: give the joints' values with --grid and --at")
     robot = load_robot(args.robot, counterweights=not args.no_counterweights)
     drive = resolve_drive(robot, args.params)
-    grid = {}
-    for name, text in joint_assignments(args.grid, "--grid"):
-        check_actuated(robot, name)
-        if name in grid:
-            raise RcmKinError(f"--grid names {name} twice: give two different joints")
-        grid[name] = np.linspace(*parse_range(text, f"--grid {name}"))
-    if len(grid) != 2:
-        raise RcmKinError(f"--grid takes two joints J=LO:HI:N J=LO:HI:N, got {len(grid)}")
-    check_map_size(np.prod([v.size for v in grid.values()]))
-    q = default_pose(robot)
-    for name, text in joint_assignments(args.at or [], "--at"):
-        check_actuated(robot, name)
-        if name in grid:
-            raise RcmKinError(f"--at {name}: {name} is a joint of the grid")
-        q[robot.actuated.index(name)] = to_si(robot, name, floats([text], f"--at {name}")[0])
-    grid = {name: to_si(robot, name, values) for name, values in grid.items()}
-    tmap = torque_map(robot, grid, q, drive, progress=progress_wanted(args))
+    grid, q = grid_and_pose(robot, args.grid, args.at)
+    tmap = torque_map(robot, grid, q, drive, counterweights=not args.no_counterweights,
+                      progress=progress_wanted(args))
     files = write_torque_map(tmap, output_folder(args.out), args.format, figures=not args.no_figures)
     payload = {"files": [str(f) for f in files], "poses": tmap.poses, "joints": list(tmap.joints),
                "model": tmap.model}
     emit(args, payload, "\n".join([*(f"wrote {f}" for f in files), f"model: {tmap.model}"]))
+
+
+def grid_and_pose(robot, grid_words: list[str], at_words: list[str] | None) -> tuple[dict, np.ndarray]:
+    """``--grid J=LO:HI:N J=LO:HI:N`` and ``--at J=VALUE ...`` (degrees for revolute joints, metres
+    for prismatic) as the grid {joint: values} and the pose of the other joints, SI (rad, m): two
+    different actuated joints, a map of at most MAX_POSES poses, no ``--at`` on a grid joint."""
+    from rcm_kin.statics.holding import check_actuated, default_pose
+    from rcm_kin.statics.maps import check_map_size, parse_range
+
+    grid = {}
+    for name, text in joint_assignments(grid_words, "--grid"):
+        check_actuated(robot, name)
+        if name in grid:
+            raise RcmKinError(f"--grid names {name} twice: give two different joints")
+        unit = "deg" if robot.joint_kind(name) == "revolute" else "m"
+        grid[name] = np.linspace(*parse_range(text, f"--grid {name}", unit))
+    if len(grid) != 2:
+        raise RcmKinError(f"--grid takes two joints J=LO:HI:N J=LO:HI:N, got {len(grid)}")
+    check_map_size(int(np.prod([v.size for v in grid.values()])))
+    q = default_pose(robot)
+    for name, text in joint_assignments(at_words or [], "--at"):
+        check_actuated(robot, name)
+        if name in grid:
+            raise RcmKinError(f"--at {name}: {name} is a joint of the grid")
+        q[robot.actuated.index(name)] = to_si(robot, name, floats([text], f"--at {name}")[0])
+    return {name: to_si(robot, name, values) for name, values in grid.items()}, q
 
 
 def joint_assignments(words: list[str], flag: str) -> list[tuple[str, str]]:
@@ -185,13 +196,14 @@ def to_si(robot, joint: str, value):
 
 
 def cmd_calibrate(args) -> None:
-    from rcm_kin.dynamics.drive import load_drive_parameters, write_parameters
+    from rcm_kin.dynamics.drive import check_drive, load_drive_parameters, write_parameters
     from rcm_kin.identification.calibration import UNITS, calibrate, calibration_logs, holding_points
 
-    base = load_drive_parameters(args.params)
+    psm = load_robot("psm")
+    base = check_drive(psm, load_drive_parameters(args.params))   # another robot's file: one line, before the data
     out = new_output(args.out, args.force, (".toml",)) if args.out is not None else None
     points = holding_points(calibration_logs(args.data))
-    result = calibrate(load_robot("psm"), base, points)
+    result = calibrate(psm, base, points)
     fitted = list(zip(result.names, result.values, result.std, UNITS))
     payload = {"parameters": {n: {"value": float(v), "std": float(s), "unit": u} for n, v, s, u in fitted},
                "residual_rms_pwm": result.residual_rms.tolist(), "friction_band_pwm": result.friction_band.tolist(),

@@ -25,14 +25,14 @@ insertion (:data:`rcm_kin.hardware.HOME_INSERTION`, 80 mm).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from rcm_kin.dynamics.drive import DriveParameters, drive_effort, with_joint
+from rcm_kin.dynamics.drive import DriveParameters, check_drive, drive_effort, with_joint
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry, step_index, telemetry_files
@@ -94,9 +94,9 @@ def holding_points(paths) -> tuple[HoldingPoint, ...]:
 
 def _poses(robot: Robot, points) -> np.ndarray:
     Q = np.zeros((len(points), robot.nq))
-    Q[:, 0] = [p.roll for p in points]
-    Q[:, 1] = [p.pitch for p in points]
-    Q[:, 2] = HOME_INSERTION
+    Q[:, robot.actuated.index("roll")] = [p.roll for p in points]
+    Q[:, robot.actuated.index("pitch")] = [p.pitch for p in points]
+    Q[:, robot.actuated.index("insertion")] = HOME_INSERTION
     return Q
 
 
@@ -107,17 +107,20 @@ def apply_values(base: DriveParameters, values) -> DriveParameters:
     offsets = dict(params.gravity_offsets)
     offsets["roll_link"] = np.array([0.0, values[1], values[2]])
     offsets["drive_link"] = np.array([values[3], 0.0, 0.0])
-    return DriveParameters(params.joints, offsets, params.source)
+    return replace(params, gravity_offsets=offsets)     # the robot and drive train kept
 
 
 def predict_pwm(robot: Robot, params: DriveParameters, points) -> np.ndarray:
     """(n, 2) holding PWM of roll and pitch at the points' poses."""
     tau = gravity_batch(robot, _poses(robot, points), params.gravity_offsets)
-    return drive_effort(params, tau[:, :3]).pwm[:, :2]
+    pwm = drive_effort(params, tau[:, [robot.actuated.index(j) for j in params.driven]]).pwm
+    return pwm[:, [params.driven.index(j) for j in ("roll", "pitch")]]    # by name: any order of the file
 
 
 def calibrate(robot: Robot, base: DriveParameters, points) -> CalibrationResult:
-    """Least-squares fit of PARAMETERS to measured holding points (at least 4)."""
+    """Least-squares fit of PARAMETERS to measured holding points (at least 4), starting from
+    ``base``, the drive parameters of ``robot`` (checked: :func:`check_drive`)."""
+    base = check_drive(robot, base)
     points = tuple(points)
     if len(points) < 4:
         raise RcmKinError(f"calibration needs at least 4 holding points, got {len(points)}")

@@ -29,7 +29,7 @@ from rcm_kin.hardware import DPM_COUNTERWEIGHT, HOME_INSERTION, MAIN_COUNTERWEIG
 from rcm_kin.model import load_robot
 from rcm_kin.model.gravity import gravity_batch, point_mass_gravity_batch
 from rcm_kin.statics.holding import check_actuated, default_pose, grid_axes, with_counterweights
-from rcm_kin.statics.maps import resolve_drive
+from rcm_kin.statics.maps import check_map_size, resolve_drive
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
@@ -145,7 +145,7 @@ class CounterweightPlacement:
     position: np.ndarray       # (3,) m, designed
     as_built: np.ndarray       # (3,) m, the URDF's centre of mass of the counterweight
     joints: tuple[str, ...]    # the joints weighed
-    unit: str                  # of the efforts: "N m" (torque; N for prismatic) or "PWM counts"
+    unit: str                  # of the efforts: "N m" (torque; N for prismatic: see units) or "PWM counts"
     rms: np.ndarray            # per joint, RMS holding effort over the grid with the design
     peak: np.ndarray           # per joint, largest |effort| with the design
     rms_as_built: np.ndarray   # per joint, with the URDF's counterweight
@@ -153,6 +153,7 @@ class CounterweightPlacement:
     rank: int                  # of the design problem: below 3 a direction is free (e.g. along the joint
                                # axis, which never changes a torque): the minimum-norm position is given
     model: str                 # "CAD (URDF inertias)" or "calibration <file>"
+    units: tuple[str, ...] = ()   # per joint of ``joints``: "N m", "N" (a prismatic joint's force) or "PWM counts"
 
     @property
     def distance(self) -> float:
@@ -185,11 +186,12 @@ def place_counterweight(robot: Robot, link: str, grid: dict, q=None, mass: float
     full, without = with_counterweights(robot, True), with_counterweights(robot, False)
     params = resolve_drive(full, drive)
     names, values = grid_axes(full, grid)
+    check_map_size(values[0].size * values[1].size)
     base_q = default_pose(full) if q is None else full.check_limits(full.check_q(q))
     A_, B_ = np.meshgrid(*values, indexing="ij")
     Q = np.broadcast_to(base_q, (A_.size, full.nq)).copy()
     Q[:, full.actuated.index(names[0])], Q[:, full.actuated.index(names[1])] = A_.ravel(), B_.ravel()
-    weighed, gain, unit = _weighing(full, params, joints)
+    weighed, gain, units = _weighing(full, params, joints)
     offsets = {} if params is None else params.gravity_offsets
     cols = [full.actuated.index(j) for j in weighed]
 
@@ -217,20 +219,22 @@ def place_counterweight(robot: Robot, link: str, grid: dict, q=None, mass: float
         x = lsq_linear(A, b, bounds=(-max_distance, max_distance)).x
     residual = (A @ x - b).reshape(-1, len(cols))
     rms = lambda e: np.sqrt(np.mean(e**2, axis=0))  # noqa: E731
-    return CounterweightPlacement(link, mount, mass, x, built, weighed, unit, rms(residual),
+    return CounterweightPlacement(link, mount, mass, x, built, weighed,
+                                  "PWM counts" if "PWM counts" in units else "N m", rms(residual),
                                   np.abs(residual).max(axis=0), rms(effort(full)), rms(base), int(rank),
-                                  model_label(params))
+                                  model_label(params), units)
 
 
-def _weighing(robot: Robot, params, joints) -> tuple[tuple[str, ...], np.ndarray, str]:
-    """The joints weighed by a design, their weights (PWM per N m with a drive, else 1) and unit."""
+def _weighing(robot: Robot, params, joints) -> tuple[tuple[str, ...], np.ndarray, tuple[str, ...]]:
+    """The joints weighed by a design, their weights (PWM per N m with a drive, else 1) and units."""
     default = robot.actuated if params is None else params.driven
     weighed = tuple(default if joints is None else joints)
     for name in weighed:
         check_actuated(robot, name)
     if params is None or not set(weighed) <= set(params.driven):
-        return weighed, np.ones(len(weighed)), "N m"
-    return weighed, np.array([params[n].pwm_per_torque for n in weighed]), "PWM counts"
+        units = tuple("N" if robot.joint_kind(n) == "prismatic" else "N m" for n in weighed)
+        return weighed, np.ones(len(weighed)), units
+    return weighed, np.array([params[n].pwm_per_torque for n in weighed]), ("PWM counts",) * len(weighed)
 
 
 def _as_built(full: Robot, without: Robot, mount: str, joint: int, mass: float) -> np.ndarray:

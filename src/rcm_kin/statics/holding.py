@@ -25,14 +25,14 @@ import numpy as np
 from tqdm import tqdm
 
 from rcm_kin.csv_table import write_csv_blocks
-from rcm_kin.dynamics.drive import DriveEffort, DriveParameters, drive_effort, model_label
+from rcm_kin.dynamics.drive import DriveEffort, DriveParameters, model_label
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.loading import build_robot
 from rcm_kin.model.masses import require_masses
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.plotting import torque_heatmaps
-from rcm_kin.statics.maps import HoldingEffort, check_map_size, resolve_drive
+from rcm_kin.statics.maps import HoldingEffort, check_map_size, drive_effort_blocks, resolve_drive
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
 from rcm_kin.symbolic.compiled import map_points
 from rcm_kin.symbolic.points import CompiledPoints, compiled_points
@@ -42,7 +42,6 @@ if TYPE_CHECKING:
     from rcm_kin.model import Robot
 
 BLOCK = 1 << 13     # poses evaluated at a time: poses and torques stay in the cache (bounds the temporaries)
-DRIVE_BLOCK = 1 << 12   # poses through the drive model at a time: its temporaries stay in the cache
 
 
 def unit_of(robot: Robot, joint: str) -> str:
@@ -280,20 +279,6 @@ def gravity_function(robot: Robot, offsets: dict | None = None) -> ca.Function:
 def _compiled(robot: Robot, offsets: tuple) -> CompiledPoints:
     """:func:`gravity_function` compiled, once per robot and offsets in a process (and on disk)."""
     return compiled_points(gravity_function(robot, {link: np.array(h) for link, h in offsets}))
-
-
-def drive_effort_blocks(params: DriveParameters, tau: np.ndarray, block: int = DRIVE_BLOCK) -> DriveEffort:
-    """:func:`drive_effort` at holding for torques (..., len(params.driven)), in blocks of ``block``
-    poses into the result arrays (temporaries the size of a block)."""
-    n = tau.shape[-1]
-    flat = tau.reshape(-1, n)
-    out = {f.name: np.empty(flat.shape, dtype=bool if f.name == "saturated" else float)
-           for f in fields(DriveEffort) if f.name != "tau"}
-    for i in range(0, len(flat), block):
-        part = drive_effort(params, flat[i:i + block])
-        for name, values in out.items():
-            values[i:i + block] = getattr(part, name)
-    return DriveEffort(tau, **{name: values.reshape(tau.shape) for name, values in out.items()})
 
 
 def write_torque_map(tmap: TorqueMap, out: Path, table: str = "csv", figures: bool = True) -> list[Path]:

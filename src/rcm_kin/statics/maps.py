@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import functools
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
@@ -42,10 +42,10 @@ if TYPE_CHECKING:
     from rcm_kin.model import Robot
 
 
-SHIPPED_ROBOT = "psm"      # the robot the shipped drive parameters are calibrated on
 DEFAULT_GRID_DEG = np.linspace(-30.0, 30.0, 61)   # roll and pitch, deg (the CLI's default grid)
 MAX_POSES = 1001 * 1001   # poses of one map (the largest benchmarked: bench_gravity.py)
 BYTES_PER_POSE = 140      # peak memory per pose, measured: 1001 x 1001 poses took 135 MB more than 5 x 5
+DRIVE_BLOCK = 1 << 12     # poses through the drive model at a time: its temporaries stay in the cache
 
 
 def check_map_size(poses: int) -> None:
@@ -144,52 +144,53 @@ class HoldingEffort:
     driven: tuple[str, ...] = ()         # the joints of ``drive`` (empty without a drive)
 
 
-def holding_effort(robot: Robot, q, drive=None) -> HoldingEffort:
+def holding_effort(robot: Robot, q, drive=None, *, params=None) -> HoldingEffort:
     """Holding effort of ``robot`` at actuated ``q`` (rad, m): the closed chain's gravity on every
     actuated joint and, with a drive (``drive`` given: DriveParameters or a drive file, checked
     against the robot; else the robot's sidecar drive), its calibrated gravity offsets and the
-    motor effort of ``params.driven``. Without one: the URDF inertias, torque only."""
+    motor effort of ``params.driven``. Without one: the URDF inertias, torque only. ``params`` is
+    the keyword's former name, still accepted (give one of the two)."""
+    if params is not None:
+        if drive is not None:
+            raise RcmKinError("holding_effort takes the drive once: give `drive` (`params` is its former name), "
+                              "not both", parameter="drive")
+        drive = params
     q = robot.check_q(q)
     require_masses(robot, "the holding torque")
-    params = resolve_drive(robot, drive)
-    if params is None:
+    drive = resolve_drive(robot, drive)
+    if drive is None:
         return HoldingEffort(gravity_batch(robot, q[None])[0], None)
-    tau = gravity_batch(robot, q[None], params.gravity_offsets)[0]
-    driven = tau[[robot.actuated.index(j) for j in params.driven]]
-    return HoldingEffort(tau, drive_effort(params, driven), model_label(params), params.driven)
+    tau = gravity_batch(robot, q[None], drive.gravity_offsets)[0]
+    driven = tau[[robot.actuated.index(j) for j in drive.driven]]
+    return HoldingEffort(tau, drive_effort(drive, driven), model_label(drive), drive.driven)
 
 
-def parse_range(text: str, what: str) -> tuple[float, float, int]:
-    """``LO:HI:N`` -> (LO, HI, N), with a clear error; N = 1 is the single value LO (= HI)."""
+def parse_range(text: str, what: str, unit: str = "deg") -> tuple[float, float, int]:
+    """``LO:HI:N`` -> (LO, HI, N), with a clear error naming ``unit`` (of LO and HI: "deg" for a
+    revolute joint, "m" for a prismatic one); N = 1 is the single value LO (= HI)."""
     try:
         lo, hi, n = text.split(":")
         lo, hi, n = float(lo), float(hi), int(n)
     except ValueError:
-        raise RcmKinError(f"{what} must be LO:HI:N (degrees, degrees, count), got '{text}'") from None
+        raise RcmKinError(f"{what} must be LO:HI:N ({unit}, {unit}, count), got '{text}'") from None
     if n < 1 or not (np.isfinite(lo) and np.isfinite(hi)) or (n > 1 and hi <= lo) or (n == 1 and hi != lo):
         raise RcmKinError(f"{what} {text}: need finite LO < HI and N >= 2, or LO = HI and N = 1")
     check_map_size(n)
     return lo, hi, n
 
 
-def gravity_map(robot: Robot, drive: DriveParameters | None = None, roll_deg=DEFAULT_GRID_DEG,
-                pitch_deg=DEFAULT_GRID_DEG, insertion=HOME_INSERTION, progress: bool = False) -> GravityMap:
+def gravity_map(robot: Robot, drive=None, roll_deg=DEFAULT_GRID_DEG, pitch_deg=DEFAULT_GRID_DEG,
+                insertion=HOME_INSERTION, progress: bool = False) -> GravityMap:
     """Holding effort over the grid roll x pitch x insertion (degrees, degrees, metres), a
-    :class:`GravityMap` with named axes. ``drive``: the drive parameters (default: the shipped,
-    calibrated set, :func:`load_drive_parameters`, for the bundled PSM only: another robot, a
-    renamed copy included, names its own)."""
+    :class:`GravityMap` with named axes. ``drive``: the drive parameters (DriveParameters or the
+    path of a drive file), checked against the robot (:func:`check_drive`); default: the robot's
+    sidecar drive, as :func:`holding_effort` (:func:`resolve_drive`). The map is in voltage and PWM,
+    so a robot without a drive is an error (its torques: :func:`rcm_kin.statics.torque_map`)."""
     missing = [j for j in DRIVEN if j not in robot.actuated]
     if missing:
         raise RcmKinError(f"a holding-effort map is over the driven joints {', '.join(DRIVEN)}; {robot.name} has no "
                           f"{', '.join(missing)}", parameter="robot")
-    if drive is None:
-        if robot.name != SHIPPED_ROBOT:
-            raise RcmKinError(f"the shipped drive parameters are calibrated on the bundled {SHIPPED_ROBOT}, not on "
-                              f"{robot.name}: give `drive` (load_drive_parameters(path)) for this robot",
-                              parameter="drive")
-        drive = load_drive_parameters()
-    elif not isinstance(drive, DriveParameters):
-        raise RcmKinError(f"drive must be DriveParameters (load_drive_parameters(path)), got {type(drive).__name__}")
+    drive = map_drive(robot, drive)
     roll_deg, pitch_deg, insertion = (_grid(x, name) for x, name in
                                       ((roll_deg, "roll_deg"), (pitch_deg, "pitch_deg"), (insertion, "insertion")))
     for name, values, unit in (("roll", np.radians(roll_deg), "deg"), ("pitch", np.radians(pitch_deg), "deg"),
@@ -209,6 +210,24 @@ def gravity_map(robot: Robot, drive: DriveParameters | None = None, roll_deg=DEF
     return GravityMap(roll_deg, pitch_deg, insertion, drive_effort_blocks(drive, tau))
 
 
+def map_drive(robot: Robot, drive=None) -> DriveParameters:
+    """The drive of a :func:`gravity_map` of ``robot``: :func:`resolve_drive` (checked; default the
+    sidecar's), required, over the map's joints :data:`DRIVEN` in that order (a file's other joints
+    are not on the map)."""
+    params = resolve_drive(robot, drive)
+    if params is None:
+        raise RcmKinError(f"a gravity map is in motor voltage and PWM and {robot.name} has no drive (its sidecar "
+                          "names no `drive` file): give `drive`, or use torque_map for its holding torques",
+                          parameter="drive")
+    if missing := [j for j in DRIVEN if j not in params.driven]:
+        raise RcmKinError(f"{params.source or 'the drive parameters'} describe no {', '.join(missing)}: a gravity map "
+                          f"needs the drives of {', '.join(DRIVEN)}", parameter="drive")
+    if params.driven != DRIVEN:
+        params = replace(params, joints={j: params.joints[j] for j in DRIVEN},
+                         drive_train={j: f for j, f in params.drive_train.items() if j in DRIVEN})
+    return params
+
+
 def _grid(values, name: str) -> np.ndarray:
     """One axis of a map's grid: a non-empty vector of finite numbers, or an error naming it."""
     try:
@@ -221,14 +240,16 @@ def _grid(values, name: str) -> np.ndarray:
     return grid
 
 
-def drive_effort_blocks(drive: DriveParameters, tau: np.ndarray, block: int = 1 << 16) -> DriveEffort:
-    """:func:`drive_effort` at holding (v = 0) for torques (..., 3), evaluated in blocks of ``block``
-    poses into the result arrays, so that its temporaries stay the size of a block."""
-    flat = tau.reshape(-1, 3)
+def drive_effort_blocks(params: DriveParameters, tau: np.ndarray, block: int = DRIVE_BLOCK) -> DriveEffort:
+    """:func:`drive_effort` at holding (v = 0) for torques (..., len(params.driven)), evaluated in
+    blocks of ``block`` poses into the result arrays, so that its temporaries stay the size of a
+    block (in the cache)."""
+    n = tau.shape[-1]
+    flat = tau.reshape(-1, n)
     out = {f.name: np.empty(flat.shape, dtype=bool if f.name == "saturated" else float)
            for f in fields(DriveEffort) if f.name != "tau"}
     for i in range(0, len(flat), block):
-        part = drive_effort(drive, flat[i:i + block])
+        part = drive_effort(params, flat[i:i + block])
         for name, values in out.items():
             values[i:i + block] = getattr(part, name)
     return DriveEffort(tau, **{name: values.reshape(tau.shape) for name, values in out.items()})
