@@ -155,8 +155,7 @@ def _joint_drive(path: Path, joint: str, entry, limit: float | None) -> JointDri
     required += [] if limit is not None else list(FIRMWARE_FIELDS)
     if not isinstance(entry, dict) or set(required) - set(entry):
         absent = [k for k in required if k not in entry] if isinstance(entry, dict) else list(required)
-        what = "is missing" if isinstance(entry, dict) else "needs"
-        raise ParameterFileError(f"{path}: [{joint}] {what} {', '.join(absent)}"
+        raise ParameterFileError(f"{path}: [{joint}] needs {', '.join(absent)}"
                                  + (" (pwm_limit: the firmware's saturation, counts)"
                                     if "pwm_limit" in absent else ""),
                                  path=path, table=joint, key=absent[0])
