@@ -152,3 +152,10 @@ def test_joints_with_a_drive_is_said_for_people(psm, params):
     with pytest.raises(RcmKinError, match="must be those, or left out") as refused:
         driven_dynamics(psm, params, joints=("roll", "pitch"))
     assert "None" not in str(refused.value)
+
+
+def test_torques_of_the_wrong_joints_name_the_drive_file(params):
+    with pytest.raises(RcmKinError, match=r"psm_drive.toml describe 3 joints \(roll, pitch, insertion\), given "
+                                          r"torques of 4") as refused:
+        drive_effort(params, np.ones(4))
+    assert "drive_effort" not in str(refused.value)

@@ -271,7 +271,9 @@ def drive_effort(params: DriveParameters, tau, v=None) -> DriveEffort:
     tau = np.asarray(tau, dtype=float)
     n = len(params.driven)
     if tau.shape[-1:] != (n,):
-        raise RcmKinError(f"drive_effort takes torques of the {n} driven joints ({', '.join(params.driven)})")
+        where = params.source or "the drive parameters"
+        raise RcmKinError(f"{where} describe {n} joints ({', '.join(params.driven)}), given torques of "
+                          f"{tau.shape[-1] if tau.ndim else 1}", parameter="drive")
     v = np.zeros_like(tau) if v is None else np.broadcast_to(np.asarray(v, dtype=float), tau.shape)
     gear, kt, res, vpp, sign, limit = _constants(params, "gear_ratio", "torque_constant", "resistance",
                                                  "volts_per_pwm", "pwm_sign", "pwm_limit")
