@@ -18,7 +18,6 @@ from rcm_kin.dynamics.drive import DRIVEN
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import DRIVER_PWM_RANGE, HOME_INSERTION
 
-SHIPPED_LABEL = "calibration psm_drive.toml"
 EPILOG_DYNAMICS = ("examples: rcm-kin dynamics psm --q 0.1 -0.2 0.08 --v 0 0 0 --u 10 -90 0 --json\n"
                    "          rcm-kin dynamics mtm --q 0 20 -30 0 0 0 0 --deg --u 0 1 0 0 0 0 0   (N m: no drive)\n"
                    "          rcm-kin dynamics my_arm.toml --joints j2 j3 --q 0.3 -0.5 --json")
@@ -96,10 +95,9 @@ def model_values(model, words, what: str, deg: bool, zero: bool = False) -> np.n
     return np.where(revolute, np.radians(values), values) if deg else values
 
 
-def _model_line(model) -> str:
-    """The line naming the model of a robot other than the shipped PSM ('' for it: its text is kept)."""
-    shipped = model.model_label == SHIPPED_LABEL and model.robot == "psm"
-    return "" if shipped else f"\nmodel: {model.model_label}, {model.input_unit} input"
+def model_line(model) -> str:
+    """The last line of a text output: which model it used (``model: <label>, <input unit> input``)."""
+    return f"model: {model.model_label}, {model.input_unit} input"
 
 
 def cmd_dynamics(args) -> None:
@@ -113,7 +111,7 @@ def cmd_dynamics(args) -> None:
     qdd = np.array(model.forward(x, u)).ravel()[len(model.joints):]
     lines = [f"{n:10} qdd {a:+.6g} {unit}/s^2" for n, a, unit in zip(model.joints, qdd, model.units)]
     emit(args, {"qdd": qdd.tolist(), "joints": list(model.joints), "model": model.model_label,
-                "input_unit": model.input_unit}, "\n".join(lines) + _model_line(model))
+                "input_unit": model.input_unit}, "\n".join([*lines, model_line(model)]))
 
 
 def _pose(args, model) -> np.ndarray:
@@ -143,6 +141,6 @@ def cmd_linearize(args) -> None:
             f"{held} u0 = {lin.u0.round(3).tolist()}"
             f"\nstate {lin.state}, input {lin.inputs}"
             f"{'' if model.coulomb or not model.pwm_input else ' (no smoothed-Coulomb slope: --coulomb adds it)'}"
-            f"\nA =\n{lin.A}\nB =\n{lin.B}{_model_line(model)}")
+            f"\nA =\n{lin.A}\nB =\n{lin.B}\n{model_line(model)}")
     emit(args, {**lin.as_dict(), "model": model.model_label, "input_unit": model.input_unit,
                 "coulomb_slope": bool(model.pwm_input and model.coulomb)}, text)

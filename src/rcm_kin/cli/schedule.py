@@ -5,8 +5,22 @@ from __future__ import annotations
 
 from dataclasses import asdict
 
-from rcm_kin.cli.common import RAW, add_json, add_params, any_robot, count, driven_model, emit, finite, path_text
-from rcm_kin.cli.control import model_values
+import numpy as np
+
+from rcm_kin.cli.common import (
+    RAW,
+    add_json,
+    add_params,
+    any_robot,
+    count,
+    driven_model,
+    emit,
+    finite,
+    floats,
+    path_text,
+)
+from rcm_kin.cli.control import model_line
+from rcm_kin.cli.statics import joint_assignments
 from rcm_kin.control.friction import DEFAULT_RAMP_DEG_S
 from rcm_kin.control.weights import Weights
 from rcm_kin.dynamics.drive import DRIVEN
@@ -14,9 +28,11 @@ from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.hardware import FIRMWARE_PERIOD, HOME_INSERTION
 
 MAX_CHECK_POINTS = 201    # 201 x 201 poses: about a minute of eigenvalues
+CHECK_POINTS = 41         # the PSM's default
 EPILOG_SCHEDULE = ("examples: rcm-kin schedule psm --out gains\n"
                    "          rcm-kin schedule psm --grid roll=-20:20:5 pitch=-15:15:3 --out gains\n"
                    "          rcm-kin schedule my_arm.toml --grid j2=-30:60:7 j3=-20:40:5 --out gains   (JSON, CSV)\n"
+                   "          rcm-kin schedule my_arm.toml --grid j2=-30:60:7 j3=-20:40:5 --at j4=15 --out gains\n"
                    "          rcm-kin schedule psm --gravity-feedforward --friction-feedforward --out gains")
 
 
@@ -28,10 +44,10 @@ def add_schedule(sub) -> None:
                    help="JOINT=LO:HI:N JOINT=LO:HI:N (degrees; first joint LQR, second LQI); the PSM also takes "
                         "'thesis' (its default: roll -20,0,20 x pitch -15,0,15 deg) or ROLLS:PITCHES in degrees, "
                         "comma-separated (write --grid=-20,0,20:-15,0,15 when it starts with a minus)")
-    p.add_argument("--insertion", type=finite(unit="m"), default=HOME_INSERTION,
-                   help=f"PSM: insertion of the models in m (default {HOME_INSERTION:g})")
-    p.add_argument("--at", nargs="+", metavar="Q", help="not the PSM: the pose (rad, m) the model's other joints "
-                   "are held at (default mid-range)")
+    p.add_argument("--insertion", type=finite(unit="m"), default=None,
+                   help=f"PSM: insertion of the models in m (default {HOME_INSERTION:g}); other robots: --at")
+    p.add_argument("--at", nargs="+", metavar="J=VALUE", help="not the PSM: values the model's other joints are "
+                   "held at (deg, m; default mid-range)")
     p.add_argument("--gravity-feedforward", action="store_true",
                    help="PSM firmware header: also export the holding-PWM table (u_hold) and rcm_holding_pwm()")
     p.add_argument("--friction-feedforward", action="store_true",
@@ -43,9 +59,9 @@ def add_schedule(sub) -> None:
     for name, value in asdict(Weights()).items():
         p.add_argument("--" + name.replace("_", "-"), dest=name, type=finite(0, 1e6, open_lo=True), default=value,
                        help=f"Bryson budget, > 0 (default {value:g}; roll: the first joint, pitch: the second)")
-    p.add_argument("--check-points", type=count(2, MAX_CHECK_POINTS), default=41,
-                   help=f"PSM: stability check on N x N poses across the grid (2 to {MAX_CHECK_POINTS}, default 41); "
-                        "other robots: the closed loop at every grid point")
+    p.add_argument("--check-points", type=count(2, MAX_CHECK_POINTS), default=None,
+                   help=f"PSM: stability check on N x N poses across the grid (2 to {MAX_CHECK_POINTS}, default "
+                        f"{CHECK_POINTS}); other robots: the closed loop at every grid point, no option")
     add_params(p, "drive parameter TOML of this robot (default: the one its sidecar names; a schedule needs one)")
     p.add_argument("--out", required=True, type=path_text, help="output folder (created)")
     add_json(p, '{"files", "stable", weakest point, "model", "input_unit"}')
@@ -58,10 +74,19 @@ def cmd_schedule(args) -> None:
         raise RcmKinError(f"schedule needs a drive: {model.robot} has no drive parameter file (a drive key in its "
                           "sidecar, or --params); without one its model has torque input")
     if model.robot == "psm" and tuple(model.joints) == DRIVEN:
+        if args.at is not None:
+            raise RcmKinError("--at is not an option of the PSM's schedule: it holds the insertion at --insertion "
+                              f"(default {HOME_INSERTION:g} m)")
         return _psm_schedule(args, model)
     if args.gravity_feedforward or args.friction_feedforward:
         raise RcmKinError("--gravity-feedforward and --friction-feedforward are of the PSM firmware's C header; "
                           f"the schedule of {model.robot} is written as JSON and CSV")
+    if args.insertion is not None:
+        raise RcmKinError(f"--insertion is the bundled PSM's: hold {model.robot}'s other joints with --at J=VALUE "
+                          "(deg, m)")
+    if args.check_points is not None:
+        raise RcmKinError(f"--check-points is the bundled PSM's (its firmware loop between grid points): the schedule "
+                          f"of {model.robot} checks the closed loop at every grid point")
     return _joint_schedule(args, model)
 
 
@@ -88,8 +113,10 @@ def _psm_schedule(args, model) -> None:
     args.model = model
     rolls, pitches = _psm_grid(args)
     weights = Weights(**{name: getattr(args, name) for name in asdict(Weights())})
-    schedule = schedule_gains(model, rolls, pitches, args.insertion, weights, args.friction_ramp)
-    survey = stability_survey(model, schedule, points=args.check_points)
+    insertion = HOME_INSERTION if args.insertion is None else args.insertion
+    points = CHECK_POINTS if args.check_points is None else args.check_points
+    schedule = schedule_gains(model, rolls, pitches, insertion, weights, args.friction_ramp)
+    survey = stability_survey(model, schedule, points=points)
     files = write_gain_schedule(schedule, output_folder(args.out), survey, args.gravity_feedforward,
                                 args.friction_feedforward)
     weakest = survey.weakest()
@@ -97,11 +124,12 @@ def _psm_schedule(args, model) -> None:
                "input_unit": model.input_unit}
     text = "\n".join([f"wrote {f}" for f in files] + [
         f"{'stable' if survey.stable else 'NOT STABLE'} at every grid point and with frozen interpolated gains on "
-        f"{args.check_points}x{args.check_points} poses between ({1 / FIRMWARE_PERIOD:g} Hz firmware loop and "
+        f"{points}x{points} poses between ({1 / FIRMWARE_PERIOD:g} Hz firmware loop and "
         "continuous);",
         f"slowest mode |z| = {weakest['spectral_radius']:.4f} at roll {weakest['roll_deg']:.1f}, pitch "
         f"{weakest['pitch_deg']:.1f} deg; least damping {weakest['min_damping']:.3f} at roll "
-        f"{weakest['min_damping_roll_deg']:.1f}, pitch {weakest['min_damping_pitch_deg']:.1f} deg"])
+        f"{weakest['min_damping_roll_deg']:.1f}, pitch {weakest['min_damping_pitch_deg']:.1f} deg",
+        model_line(model)])
     emit(args, payload, text)
 
 
@@ -112,7 +140,7 @@ def _joint_schedule(args, model) -> None:
         raise RcmKinError(f"schedule {model.robot} needs --grid JOINT=LO:HI:N JOINT=LO:HI:N over two of "
                           f"{', '.join(model.joints)} (degrees)")
     grid = parse_joint_grid(args.grid, model)
-    at = None if args.at is None else model_values(model, args.at, "--at", False)
+    at = held_pose(model, args.at, grid)
     schedule = schedule_joints(model, grid, at, Weights(**{name: getattr(args, name) for name in asdict(Weights())}))
     files = write_joint_schedule(schedule, model, args.out)
     weakest, (a, b) = schedule.weakest(), schedule.joints
@@ -120,6 +148,23 @@ def _joint_schedule(args, model) -> None:
         f"{'stable' if schedule.stable else 'NOT STABLE'} at every grid point (continuous closed loop of {a} and "
         f"{b}; the firmware's sampled loop and C header are the PSM's);",
         f"slowest mode Re = {weakest['max_real']:.4g} 1/s at {a} {weakest[f'{a}_deg']:.1f}, {b} "
-        f"{weakest[f'{b}_deg']:.1f} deg; model: {model.model_label}"])
+        f"{weakest[f'{b}_deg']:.1f} deg", model_line(model)])
     emit(args, {"files": [str(f) for f in files], "stable": schedule.stable, **weakest, "model": model.model_label,
                 "input_unit": model.input_unit}, text)
+
+
+def held_pose(model, words, grid) -> np.ndarray | None:
+    """The model pose (SI) of ``--at J=VALUE`` words (degrees for a revolute joint, metres for a
+    prismatic one; the joints not named at mid-range), or None when none is given."""
+    if words is None:
+        return None
+    at = (model.lower + model.upper) / 2
+    for name, text in joint_assignments(words, "--at"):
+        if name not in model.joints:
+            raise RcmKinError(f"--at {name}: not a joint of the model of {model.robot} ({', '.join(model.joints)})")
+        if name in grid:
+            raise RcmKinError(f"--at {name}: {name} is a joint of the grid")
+        k = model.joints.index(name)
+        value = floats([text], f"--at {name}")[0]
+        at[k] = np.radians(value) if model.units[k] == "rad" else value
+    return at

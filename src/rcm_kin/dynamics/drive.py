@@ -11,10 +11,14 @@ ratio ``gear_ratio`` (motor rad per joint rad, or per metre for the insertion), 
 
 A drive file describes one robot (its ``robot`` key) and the actuated joints it has tables for:
 every top-level table other than ``[gravity_offsets]`` and ``[drive_train.<joint>]`` is a joint
-table, and their order in the file is :attr:`DriveParameters.driven`, the order of every per-joint
-array. The bundled PSM's lives in ``urdf/psm_drive.toml`` beside its sidecar (documented there); the
-shipped set is the calibrated one (:mod:`rcm_kin.identification.calibration`). For the bundled PSM
-the PWM saturation is not a drive constant: it comes from the firmware,
+table. The order of the tables in the file means nothing: :attr:`DriveParameters.driven`, the order
+of every per-joint array, is the robot's actuated order. A file of the bundled PSM has exactly its
+three driven joints, :data:`DRIVEN` (roll, pitch, insertion: its actuated order) as soon as it is
+read; any other robot's joints are put in its actuated order by :func:`check_drive`, which every
+use of a drive on a robot goes through. The bundled PSM's lives in ``urdf/psm_drive.toml`` beside
+its sidecar (documented there); the shipped set is the calibrated one
+(:mod:`rcm_kin.identification.calibration`). For the bundled PSM the PWM saturation is not a drive
+constant: it comes from the firmware,
 :data:`rcm_kin.hardware.PWM_LIMIT` (older files that still carry a ``pwm_limit`` key load when it
 agrees); a drive file of any other robot gives ``pwm_limit`` (counts) in each joint table.
 """
@@ -35,7 +39,6 @@ from rcm_kin.model.loading import urdf_dir
 DEFAULT_PARAMETERS = urdf_dir() / "psm_drive.toml"   # the bundled PSM's calibration (its sidecar names it)
 SHIPPED_ROBOT = "psm"       # the robot a drive file that names none is taken to describe (older files)
 DRIVEN = ("roll", "pitch", "insertion")   # the bundled PSM's (its PSM-specific code); generic code: params.driven
-DRIVEN_UNIT = {"roll": "rad", "pitch": "rad", "insertion": "m"}   # SI unit of each driven joint's position
 FIRMWARE_FIELDS = ("pwm_limit",)   # JointDrive fields set from rcm_kin.hardware, not read from the file
 
 
@@ -82,7 +85,9 @@ class DriveParameters:
 
     @property
     def driven(self) -> tuple[str, ...]:
-        """The joints this file describes, in its order (the order of every per-joint array)."""
+        """The joints this file describes in the robot's actuated order (the order of every per-joint
+        array), whatever the order of their tables in the file: :data:`DRIVEN` for the bundled PSM,
+        set on reading; any other robot's once :func:`check_drive` has checked them against it."""
         return tuple(self.joints)
 
     @property
@@ -105,8 +110,10 @@ class DriveEffort:
 
 def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
     """Read a drive parameter file (default: the shipped, calibrated one of the bundled PSM). Its
-    joint tables (every top-level table but ``[gravity_offsets]`` and ``[drive_train]``, in file
-    order) are the driven joints; the PSM's ``pwm_limit`` is the firmware's
+    joint tables (every top-level table but ``[gravity_offsets]`` and ``[drive_train]``) are the
+    driven joints: the bundled PSM's are exactly :data:`DRIVEN`, in that order whatever the file's
+    (another table is an error naming it); any other robot's are in file order until
+    :func:`check_drive` puts them in the robot's actuated order. The PSM's ``pwm_limit`` is the firmware's
     (:data:`rcm_kin.hardware.PWM_LIMIT`), any other robot's is read from each joint table. Every
     value is checked against its unit and range (:mod:`rcm_kin.dynamics.drive_schema`)."""
     path = Path(path) if path is not None else DEFAULT_PARAMETERS
@@ -123,8 +130,12 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
         raise ParameterFileError(f"{path}: describes no joint (one table [<joint>] per driven joint)", path=path,
                                  table=None, key=None)
     firmware = dict(zip(DRIVEN, PWM_LIMIT)) if robot == SHIPPED_ROBOT else {}
-    for joint in firmware:                   # the PSM's code takes its three driven joints as given
-        tables.setdefault(joint, None)
+    if firmware:                             # the PSM's code takes its three driven joints, in DRIVEN order
+        if extra := [joint for joint in tables if joint not in DRIVEN]:
+            raise ParameterFileError(f"{path}: [{extra[0]}] is not a driven joint of the bundled {SHIPPED_ROBOT}: its "
+                                     f"drive file has the tables {', '.join(DRIVEN)} only (the joints its firmware "
+                                     "drives)", path=path, table=extra[0], key=None)
+        tables = {joint: tables.get(joint) for joint in DRIVEN}
     joints = {joint: _joint_drive(path, joint, entry, firmware.get(joint)) for joint, entry in tables.items()}
     offsets = {}
     if not isinstance(raw.get("gravity_offsets", {}), dict):
@@ -143,10 +154,11 @@ def _joint_drive(path: Path, joint: str, entry, limit: float | None) -> JointDri
     required = [f.name for f in fields(JointDrive) if f.default is MISSING and f.name in names]
     required += [] if limit is not None else list(FIRMWARE_FIELDS)
     if not isinstance(entry, dict) or set(required) - set(entry):
-        absent = sorted(set(required) - set(entry)) if isinstance(entry, dict) else list(required)
-        raise ParameterFileError(f"{path}: [{joint}] needs {', '.join(required)}"
-                                 + (" (pwm_limit: the firmware's saturation, counts)" if limit is None else ""),
-                                 path=path, table=joint, key=absent[0] if absent else None)
+        absent = [k for k in required if k not in entry] if isinstance(entry, dict) else list(required)
+        raise ParameterFileError(f"{path}: [{joint}] needs {', '.join(absent)}"
+                                 + (" (pwm_limit: the firmware's saturation, counts)"
+                                    if "pwm_limit" in absent else ""),
+                                 path=path, table=joint, key=absent[0])
     unknown = sorted(set(entry) - set(names) - set(FIRMWARE_FIELDS))
     if unknown:
         raise ParameterFileError(f"{path}: [{joint}] has unknown keys {', '.join(unknown)} "
@@ -165,7 +177,8 @@ def _joint_drive(path: Path, joint: str, entry, limit: float | None) -> JointDri
 
 
 def check_drive(robot, params: DriveParameters) -> DriveParameters:
-    """``params`` if they describe ``robot`` (same name, joints and links that exist), else a one-line
+    """``params`` if they describe ``robot`` (same name, joints and links that exist), with their
+    joints in the robot's actuated order (:attr:`DriveParameters.driven`), else a one-line
     :class:`~rcm_kin.errors.ParameterFileError`: a calibration is never applied to another robot."""
     where = params.source or "the drive parameters"
     if params.robot != robot.name:
@@ -179,7 +192,8 @@ def check_drive(robot, params: DriveParameters) -> DriveParameters:
     if links := [link for link in params.gravity_offsets if not robot.tree.existBodyName(link)]:
         raise ParameterFileError(f"{where}: [gravity_offsets] links {', '.join(links)} are not links of {robot.name}",
                                  path=params.source, table="gravity_offsets", key=links[0], parameter="drive")
-    return params
+    order = tuple(j for j in robot.actuated if j in params.joints)
+    return params if order == params.driven else replace(params, joints={j: params.joints[j] for j in order})
 
 
 def robot_drive(robot) -> DriveParameters | None:
@@ -257,7 +271,9 @@ def drive_effort(params: DriveParameters, tau, v=None) -> DriveEffort:
     tau = np.asarray(tau, dtype=float)
     n = len(params.driven)
     if tau.shape[-1:] != (n,):
-        raise RcmKinError(f"drive_effort takes torques of the {n} driven joints ({', '.join(params.driven)})")
+        where = params.source or "the drive parameters"
+        raise RcmKinError(f"{where} describe {n} joints ({', '.join(params.driven)}), given torques of "
+                          f"{tau.shape[-1] if tau.ndim else 1}", parameter="drive")
     v = np.zeros_like(tau) if v is None else np.broadcast_to(np.asarray(v, dtype=float), tau.shape)
     gear, kt, res, vpp, sign, limit = _constants(params, "gear_ratio", "torque_constant", "resistance",
                                                  "volts_per_pwm", "pwm_sign", "pwm_limit")

@@ -123,7 +123,7 @@ def modelled_joints(robot: Robot, params: DriveParameters | None, joints=None) -
     if params is not None:
         if joints is not None and tuple(joints) != params.driven:
             raise RcmKinError(f"the drive of {robot.name} ({params.source or 'in memory'}) models "
-                              f"{', '.join(params.driven)}: `joints` must be those or None", parameter="joints")
+                              f"{', '.join(params.driven)}: `joints` must be those, or left out", parameter="joints")
         return params.driven
     joints = robot.actuated if joints is None else tuple(joints)
     if not joints or len(set(joints)) != len(joints) or any(j not in robot.actuated for j in joints):
@@ -132,15 +132,16 @@ def modelled_joints(robot: Robot, params: DriveParameters | None, joints=None) -
     return joints
 
 
-def driven_dynamics(robot: Robot, params: DriveParameters | None = None, coulomb: bool = True, q_fixed=None,
+def driven_dynamics(robot: Robot, params: DriveParameters | None = None, q_fixed=None, coulomb: bool = True, *,
                     joints=None) -> DrivenDynamics:
     """Build the CasADi model of ``robot``'s modelled joints.
 
     ``params`` None: the robot's own drive (:func:`~rcm_kin.dynamics.drive.robot_drive`). With a
     drive (checked against the robot: another robot's is a one-line error) the model has PWM input
     and covers ``params.driven``; without one it has torque input (N m, N) on the URDF inertias
-    and covers ``joints`` (default all actuated). ``q_fixed``: actuated configuration (robot
-    order) giving the joints held still (default all zero). ``coulomb=False`` leaves the smoothed
+    and covers ``joints`` (keyword only; default all actuated). ``q_fixed``: actuated configuration
+    (robot order) giving the joints held still (default all zero); the positional order
+    ``(robot, params, q_fixed, coulomb)`` is the one of before ``joints``. ``coulomb=False`` leaves the smoothed
     Coulomb friction out, e.g. for controller design (its slope at rest, ``F_c / v_c``, is a
     property of the smoothing only).
     """
@@ -197,11 +198,8 @@ def _driven_closure(robot: Robot, q_fixed: np.ndarray, q, joints: tuple[str, ...
 def driven_gravity_function(robot: Robot, offsets: dict, q_fixed=None, joints=None) -> ca.Function:
     """``q -> g(q)`` (N m, N) of the modelled joints ``joints`` with the first-moment ``offsets``
     ({link: (3,) kg m}, e.g. ``DriveParameters.gravity_offsets``): the ``gravity`` of
-    :func:`driven_dynamics` without building the rest of the model. ``joints`` None: the PSM's
-    driven joints where the robot has them all (what the callers of before expect), else all
-    actuated; give ``joints`` (e.g. ``params.driven``) to be explicit."""
-    if joints is None and set(DRIVEN) <= set(robot.actuated):
-        joints = DRIVEN                       # compatibility default (statics maps): pass joints instead
+    :func:`driven_dynamics` without building the rest of the model. ``joints``: the modelled
+    joints (e.g. ``params.driven``), default all actuated, as :func:`driven_dynamics` without a drive."""
     joints = modelled_joints(robot, None, joints)
     q_fixed = robot.check_q(np.zeros(robot.nq) if q_fixed is None else q_fixed)
     tree = tree_joints(robot.tree)

@@ -277,7 +277,7 @@ def driven_gravity(robot: Robot, drive: DriveParameters, Q: np.ndarray, progress
 def _compiled_gravity(robot: Robot, offsets: tuple) -> ca.Function:
     """The driven gravity with first moments ``offsets`` ((link, (hx, hy, hz)), ...), compiled:
     built once per robot and offsets in a process (and on disk by :mod:`rcm_kin.symbolic.compiled`)."""
-    return compiled(driven_gravity_function(robot, {link: np.array(h) for link, h in offsets}))
+    return compiled(driven_gravity_function(robot, {link: np.array(h) for link, h in offsets}, joints=DRIVEN))
 
 
 def table_header() -> list[str]:
