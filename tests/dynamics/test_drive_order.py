@@ -159,3 +159,20 @@ def test_torques_of_the_wrong_joints_name_the_drive_file(params):
                                           r"torques of 4") as refused:
         drive_effort(params, np.ones(4))
     assert "drive_effort" not in str(refused.value)
+
+
+def test_one_rule_picks_the_drive_everywhere(tmp_path):
+    """resolve_drive: None the robot's own, "cad" none, a path or parameters checked; the map, the
+    dynamics and the MJCF follow it alike."""
+    import rcm_kin as rk
+    from rcm_kin.dynamics.drive import CAD, resolve_drive
+    from rcm_kin.export.mjcf import mjcf_tree
+
+    psm = rk.load_robot("psm")
+    assert resolve_drive(psm).source == rk.load_drive_parameters().source
+    assert resolve_drive(psm, CAD) is None
+    assert rk.driven_dynamics(psm, CAD).input_unit.startswith("torque")
+    assert "CAD (URDF inertias)" in mjcf_tree(psm, CAD).getroot()[0].text
+    assert "calibration psm_drive.toml" in mjcf_tree(psm).getroot()[0].text
+    with pytest.raises(rk.RcmKinError, match="describes robot 'psm', not 'mtm'"):
+        resolve_drive(rk.load_robot("mtm"), rk.load_drive_parameters())

@@ -132,7 +132,7 @@ def test_free_swing_follows_our_dynamics(exported, tmp_path, model_of, seconds):
     comparison sees the loops."""
     psm = load_robot("psm")
     drive = robot_drive(psm) if model_of == "calibration" else None
-    path = exported["psm"] if drive else write_mjcf(psm, tmp_path / "cad.xml", None)
+    path = exported["psm"] if drive else write_mjcf(psm, tmp_path / "cad.xml", "cad")
     model = mujoco.MjModel.from_xml_path(str(path))
     model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
     model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_LIMIT

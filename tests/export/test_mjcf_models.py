@@ -158,7 +158,7 @@ def test_offsets_are_centre_of_mass_shifts_mass_and_central_inertia_kept(tmp_pat
     from the TOML itself, the principal inertias about the centre the CAD's; every other body the CAD's."""
     psm = load_robot("psm")
     cal, _ = _export(capsys, tmp_path, "psm", "psm")
-    cad = mujoco.MjModel.from_xml_path(str(write_mjcf(psm, tmp_path / "cad.xml", None)))
+    cad = mujoco.MjModel.from_xml_path(str(write_mjcf(psm, tmp_path / "cad.xml", "cad")))
     offsets = tomllib.loads((urdf_dir() / "psm_drive.toml").read_text())["gravity_offsets"]
     assert sorted(offsets) == ["drive_link", "roll_link"]
     for b in range(1, cal.nbody):

@@ -68,7 +68,7 @@ def test_the_drive_defaults_to_the_shipped_set():
     np.testing.assert_array_equal(a.effort.pwm, b.effort.pwm)
     with pytest.raises(rk.RcmKinError, match="no drive parameter file at psm_drive.toml"):
         rk.gravity_map(psm, "psm_drive.toml", [0.0], [10.0], [0.1])      # a path: read (here: not found)
-    with pytest.raises(rk.RcmKinError, match="`drive` must be DriveParameters or the path of a drive file"):
+    with pytest.raises(rk.RcmKinError, match="`drive` is DriveParameters, the path of a drive file, None"):
         rk.gravity_map(psm, 42, [0.0], [10.0], [0.1])
 
 

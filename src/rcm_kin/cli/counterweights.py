@@ -36,8 +36,8 @@ def add_counterweights(sub) -> None:
 
 def cmd_counterweights(args) -> None:
     from rcm_kin.cli.statics import grid_and_pose
+    from rcm_kin.dynamics.drive import resolve_drive
     from rcm_kin.statics.counterweights import place_counterweight
-    from rcm_kin.statics.maps import resolve_drive
 
     robot = load_robot(args.robot)
     if not robot.description.counterweights:

@@ -68,10 +68,10 @@ def cmd_export(args) -> None:
     mjcf = None if args.mjcf is None else new_output(args.mjcf, args.force, (".xml",))
     payload, lines = {"files": []}, []
     if mjcf:
-        from rcm_kin.dynamics.drive import check_drive, load_drive_parameters, model_label, robot_drive
+        from rcm_kin.dynamics.drive import model_label, resolve_drive
         from rcm_kin.export.mjcf import write_mjcf
 
-        params = robot_drive(robot) if args.params is None else check_drive(robot, load_drive_parameters(args.params))
+        params = resolve_drive(robot, args.params)
         payload["files"].append(str(write_mjcf(robot, mjcf, params, package_dirs(args))))
         payload["model"] = model_label(params)
         lines += [f"wrote {payload['files'][-1]}", f"model: {payload['model']}"]

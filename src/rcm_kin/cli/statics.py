@@ -86,7 +86,8 @@ def add_calibrate(sub) -> None:
 
 
 def cmd_gravity(args) -> None:
-    from rcm_kin.statics.maps import holding_effort, resolve_drive
+    from rcm_kin.dynamics.drive import resolve_drive
+    from rcm_kin.statics.maps import holding_effort
 
     robot = load_robot(args.robot, counterweights=not args.no_counterweights)
     drive = resolve_drive(robot, args.params)        # --params of another robot: one line, before any number
@@ -137,8 +138,8 @@ def psm_torque_map(args) -> None:
 
 
 def grid_torque_map(args) -> None:
+    from rcm_kin.dynamics.drive import resolve_drive
     from rcm_kin.statics.holding import torque_map, write_torque_map
-    from rcm_kin.statics.maps import resolve_drive
 
     if any(x is not None for x in (args.roll, args.pitch, args.insertion)):
         raise RcmKinError("--grid replaces --roll/--pitch/--insertion: give the joints' values with --grid and --at")

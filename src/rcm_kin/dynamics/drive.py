@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
+from typing import Final
 
 import numpy as np
 
@@ -201,6 +202,26 @@ def robot_drive(robot) -> DriveParameters | None:
     None when it names none: the robot then runs on its URDF inertias, torque only."""
     path = robot.description.drive
     return None if path is None else check_drive(robot, load_drive_parameters(path))
+
+
+CAD: Final = "cad"   # a `drive` argument asking for no drive: the URDF inertias, torque only
+
+
+def resolve_drive(robot, drive=None) -> DriveParameters | None:
+    """The one rule for which drive a result of ``robot`` uses: ``None`` the robot's own
+    (:func:`robot_drive`; None when its sidecar names none), :data:`CAD` none (the URDF inertias),
+    else ``drive`` (DriveParameters, or the path of a drive file) checked against the robot
+    (:func:`check_drive`: a file of another robot is a one-line error)."""
+    if drive is None:
+        return robot_drive(robot)
+    if isinstance(drive, str) and drive == CAD:
+        return None
+    if isinstance(drive, (str, Path)):
+        drive = load_drive_parameters(drive)
+    if not isinstance(drive, DriveParameters):
+        raise RcmKinError(f"`drive` is DriveParameters, the path of a drive file, None (the robot's own) or {CAD!r} "
+                          f"(none), got {type(drive).__name__}", parameter="drive")
+    return check_drive(robot, drive)
 
 
 def model_label(params: DriveParameters | None) -> str:

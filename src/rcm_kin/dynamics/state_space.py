@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, check_drive, model_label, robot_drive
+from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, model_label, resolve_drive
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import DRIVER_PWM_RANGE
 from rcm_kin.model.gravity import offset_moments
@@ -145,7 +145,7 @@ def driven_dynamics(robot: Robot, params: DriveParameters | None = None, q_fixed
     Coulomb friction out, e.g. for controller design (its slope at rest, ``F_c / v_c``, is a
     property of the smoothing only).
     """
-    params = robot_drive(robot) if params is None else check_drive(robot, params)
+    params = resolve_drive(robot, params)
     joints = modelled_joints(robot, params, joints)
     require_masses(robot, "its dynamics")
     n = len(joints)

@@ -2,12 +2,12 @@
 
 import lazy_loader
 
-__all__ = ["OWN_DRIVE", "calibrated_robot", "export_drive", "write_mjcf"]
+__all__ = ["calibrated_robot", "write_mjcf"]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,
     submod_attrs={
-        "calibrated": ["OWN_DRIVE", "calibrated_robot", "export_drive"],
+        "calibrated": ["calibrated_robot"],
         "mjcf": ["write_mjcf"],
     },
 )

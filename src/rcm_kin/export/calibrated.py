@@ -20,29 +20,14 @@ calibrated gravity exactly; its inertia is the CAD's about the moved centres).
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Final
 
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.dynamics.drive import DriveParameters, check_drive, robot_drive
+from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model import Robot
 from rcm_kin.model.gravity import offset_moments
-
-OWN_DRIVE: Final = "own"     # the default drive of an export: the robot's own (its sidecar's ``drive``)
-
-
-def export_drive(robot: Robot, params: DriveParameters | None | str = OWN_DRIVE) -> DriveParameters | None:
-    """The drive parameters an export of ``robot`` holds: :data:`OWN_DRIVE` the robot's own
-    (:func:`~rcm_kin.dynamics.drive.robot_drive`, None when its sidecar names none), None the CAD,
-    or ``params`` once :func:`~rcm_kin.dynamics.drive.check_drive` has found them to describe it."""
-    if isinstance(params, str):
-        if params != OWN_DRIVE:
-            raise RcmKinError(f"`drive` is drive parameters, None (CAD) or {OWN_DRIVE!r}, not {params!r}",
-                              parameter="drive")
-        return robot_drive(robot)
-    return None if params is None else check_drive(robot, params)
 
 
 def calibrated_inertia(inertia: pin.Inertia, moment, where: str = "a link") -> pin.Inertia:

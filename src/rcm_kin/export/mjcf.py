@@ -49,9 +49,9 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.dynamics.drive import DriveParameters, model_label
+from rcm_kin.dynamics.drive import DriveParameters, model_label, resolve_drive
 from rcm_kin.errors import RcmKinError, RcmKinWarning, warn
-from rcm_kin.export.calibrated import OWN_DRIVE, calibrated_inertias, export_drive
+from rcm_kin.export.calibrated import calibrated_inertias
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.model import Robot
 from rcm_kin.model.constrained import solve_loops
@@ -240,12 +240,13 @@ def _equality(robot: Robot, elements: dict[int, ET.Element]) -> ET.Element:
     return equality
 
 
-def mjcf_tree(robot: Robot, params: DriveParameters | None | str = OWN_DRIVE,
+def mjcf_tree(robot: Robot, params: DriveParameters | str | Path | None = None,
               package_dirs: Mapping[str, str | Path] | None = None) -> ET.ElementTree:
     """The MJCF document of ``robot`` (see the module docstring). ``params``: the drive parameters
-    whose model it holds (:func:`~rcm_kin.export.calibrated.export_drive`: default the robot's own,
-    None the CAD); ``package_dirs``: {package: folder} for ``package://`` meshes."""
-    params = export_drive(robot, params)
+    whose model it holds (:func:`~rcm_kin.dynamics.drive.resolve_drive`: None the robot's own,
+    ``"cad"`` the URDF inertias, else a drive of this robot); ``package_dirs``: {package: folder}
+    for ``package://`` meshes."""
+    params = resolve_drive(robot, params)
     visual = visual_geometry(robot, package_dirs)
     root = ET.Element("mujoco", model=robot.name)
     root.append(ET.Comment(f" rcm-kin: {robot.name}, model {model_label(params)} ".replace("--", "- -")))
@@ -278,7 +279,7 @@ def mjcf_tree(robot: Robot, params: DriveParameters | None | str = OWN_DRIVE,
     return ET.ElementTree(root)
 
 
-def write_mjcf(robot: Robot, path: str | Path, params: DriveParameters | None | str = OWN_DRIVE,
+def write_mjcf(robot: Robot, path: str | Path, params: DriveParameters | str | Path | None = None,
                package_dirs: Mapping[str, str | Path] | None = None) -> Path:
     """Write ``robot``'s MJCF to ``path`` (see :func:`mjcf_tree`); nothing is written on an error."""
     path = Path(path)

@@ -23,13 +23,13 @@ import numpy as np
 import pinocchio as pin
 from scipy.optimize import lsq_linear
 
-from rcm_kin.dynamics.drive import DriveParameters, model_label
+from rcm_kin.dynamics.drive import DriveParameters, model_label, resolve_drive
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import DPM_COUNTERWEIGHT, HOME_INSERTION, MAIN_COUNTERWEIGHT
 from rcm_kin.model import load_robot
 from rcm_kin.model.gravity import gravity_batch, point_mass_gravity_batch
 from rcm_kin.statics.holding import check_actuated, default_pose, grid_axes, with_counterweights
-from rcm_kin.statics.maps import check_map_size, resolve_drive
+from rcm_kin.statics.maps import check_map_size
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot

@@ -25,18 +25,15 @@ import numpy as np
 from tqdm import tqdm
 
 from rcm_kin.csv_table import write_csv_blocks
-from rcm_kin.dynamics.drive import DriveEffort, DriveParameters, model_label
+from rcm_kin.dynamics.drive import DriveEffort, DriveParameters, model_label, resolve_drive
+from rcm_kin.dynamics.state_space import driven_gravity_function
 from rcm_kin.errors import RcmKinError
-from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.loading import build_robot
 from rcm_kin.model.masses import require_masses
-from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.plotting import torque_heatmaps
-from rcm_kin.statics.maps import HoldingEffort, check_map_size, drive_effort_blocks, resolve_drive
-from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
+from rcm_kin.statics.maps import HoldingEffort, check_map_size, drive_effort_blocks
 from rcm_kin.symbolic.compiled import map_points
 from rcm_kin.symbolic.points import CompiledPoints, compiled_points
-from rcm_kin.symbolic.tree import tree_joints, world_placements
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
@@ -260,19 +257,10 @@ def map_gravity(robot: Robot, offsets: dict, q: np.ndarray, index: tuple[int, in
 
 def gravity_function(robot: Robot, offsets: dict | None = None) -> ca.Function:
     """``q -> g(q)``: the holding torques (N m, N) of every actuated joint at actuated ``q``, the
-    closed chain's generalised gravity (the open tree's RNEA through the loops' linear relations)
-    plus that of the first-moment ``offsets`` ({link: (3,) kg m in the link's frame}, mass-free)."""
-    joints = tree_joints(robot.tree)
-    gravity = np.array(robot.tree.gravity.linear)
-    q, zero = ca.SX.sym("q", robot.nq), ca.DM.zeros(robot.nq)
-    phi = linear_closure(relation_jacobian(robot), tree_configuration(robot, np.zeros(robot.nq)), q)
-    g = closed_chain_rnea(joints, gravity, phi, q, zero, zero)
-    moments = offset_moments(robot, offsets or {})
-    if moments:
-        placements = world_placements(joints, phi)
-        potential = sum(-ca.dot(ca.DM(gravity), placements[j][0] @ ca.DM(h)) for j, h in moments.items())
-        g = g + ca.gradient(potential, q)
-    return ca.Function("holding_gravity", [q], [g], ["q"], ["g"])
+    closed chain's generalised gravity plus that of the first-moment ``offsets`` ({link: (3,) kg m
+    in the link's frame}, mass-free): the dynamics' own gravity
+    (:func:`~rcm_kin.dynamics.state_space.driven_gravity_function`) over every actuated joint."""
+    return driven_gravity_function(robot, offsets or {}, joints=robot.actuated)
 
 
 @functools.lru_cache(maxsize=8)

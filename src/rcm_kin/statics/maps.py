@@ -24,11 +24,9 @@ from rcm_kin.dynamics.drive import (
     DRIVEN,
     DriveEffort,
     DriveParameters,
-    check_drive,
     drive_effort,
-    load_drive_parameters,
     model_label,
-    robot_drive,
+    resolve_drive,
 )
 from rcm_kin.dynamics.state_space import driven_gravity_function
 from rcm_kin.errors import RcmKinError, WorkLimitError
@@ -118,20 +116,6 @@ def _on_grid(values: np.ndarray, x: float, name: str, unit: str) -> int:
     if not abs(values[k] - x) <= 1e-9 * max(1.0, abs(x)):
         raise RcmKinError(f"{name} {x:g} {unit} is not on the map's grid (nearest {values[k]:g} {unit})")
     return k
-
-
-def resolve_drive(robot: Robot, drive=None) -> DriveParameters | None:
-    """The drive a result of ``robot`` uses: ``drive`` (DriveParameters, or the path of a drive file)
-    checked against the robot (:func:`check_drive`: a file of another robot is a one-line error),
-    else the robot's own (:func:`robot_drive`; None: CAD, torque only)."""
-    if drive is None:
-        return robot_drive(robot)
-    if isinstance(drive, (str, Path)):
-        drive = load_drive_parameters(drive)
-    if not isinstance(drive, DriveParameters):
-        raise RcmKinError(f"`drive` must be DriveParameters or the path of a drive file, got {type(drive).__name__}",
-                          parameter="drive")
-    return check_drive(robot, drive)
 
 
 @dataclass(frozen=True)
