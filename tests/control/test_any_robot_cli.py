@@ -10,10 +10,10 @@ import json
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.cli_calls import one_line_error, run
 from oracles.dyn_robots import DRIVE_KEYS, drive_text, write_mypsm, write_ur5
 
 import rcm_kin as rk
-from rcm_kin.cli import main
 from rcm_kin.control.joint_schedule import axis_gains, parse_joint_grid, schedule_joints
 from rcm_kin.control.linearization import linearize
 from rcm_kin.control.weights import Weights
@@ -21,22 +21,6 @@ from rcm_kin.dynamics.drive import DEFAULT_PARAMETERS
 from rcm_kin.dynamics.state_space import driven_dynamics
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model.loading import urdf_dir
-
-
-def run(capsys, *argv):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def one_line_error(capsys, argv, message):
-    code, out, err = run(capsys, *argv)
-    assert code == 2 and out == "", (argv, out, err)
-    assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err, err
-    assert message in err, err
 
 
 def test_mtm_linearize_and_dynamics_have_torque_input(capsys, mtm):

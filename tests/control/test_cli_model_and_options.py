@@ -9,28 +9,12 @@ import json
 
 import numpy as np
 import pinocchio as pin
+from oracles.cli_calls import one_line_error, run
 from oracles.dyn_robots import DRIVE_KEYS, drive_text, write_mypsm
 
-from rcm_kin.cli import main
 from rcm_kin.model.loading import urdf_dir
 
 SHIPPED_LINE = "model: calibration psm_drive.toml, PWM [counts] input"
-
-
-def run(capsys, *argv):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def one_line_error(capsys, argv, message):
-    code, out, err = run(capsys, *argv)
-    assert code == 2 and out == "", (argv, out, err)
-    assert err.startswith("error: ") and err.count("\n") == 1 and "Traceback" not in err, err
-    assert message in err, err
 
 
 def test_every_psm_text_output_ends_with_its_model(capsys, tmp_path, monkeypatch):

@@ -13,10 +13,10 @@ import tomllib
 
 import numpy as np
 import pytest
+from oracles.cli_calls import run
 from oracles.dyn_robots import DRIVE_KEYS, drive_text, write_mypsm
 
 import rcm_kin as rk
-from rcm_kin.cli import main
 from rcm_kin.dynamics.drive import DEFAULT_PARAMETERS, DRIVEN, check_drive, drive_effort, load_drive_parameters
 from rcm_kin.dynamics.state_space import driven_dynamics, driven_gravity_function
 from rcm_kin.errors import ParameterFileError, RcmKinError
@@ -38,15 +38,6 @@ def reordered_psm_file(folder):
     path = folder / "psm_reorder.toml"
     path.write_text(text)
     return path
-
-
-def run(capsys, *argv):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_the_psm_file_is_in_driven_order_whatever_its_table_order(tmp_path):

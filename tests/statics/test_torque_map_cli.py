@@ -11,20 +11,11 @@ import re
 import numpy as np
 import pinocchio as pin
 import pytest
+from oracles.cli_calls import run
 
 import rcm_kin as rk
-from rcm_kin.cli import main
 from rcm_kin.dynamics.drive import DEFAULT_PARAMETERS
 from rcm_kin.model.loading import urdf_dir
-
-
-def run(capsys, *argv):
-    try:
-        code = main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture(scope="module")

@@ -25,6 +25,7 @@ import pinocchio as pin
 from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.kinematics.numeric_ik import solve_ik
+from rcm_kin.kinematics.rcm_ik import broken_limits
 from rcm_kin.model.joints import joint_axes_world
 
 if TYPE_CHECKING:
@@ -82,21 +83,6 @@ def _angles_of_direction(g: RcmGeometry, u: np.ndarray) -> tuple[float, float]:
     return float(np.arctan2(b, a)), float(np.arctan2(g.sign * (u @ g.roll_axis), np.hypot(a, b)))
 
 
-def _within(robot: Robot, names, values, tol=1e-12) -> list[str]:
-    """Descriptions of the limits that ``values`` break (empty when all are within)."""
-    broken = []
-    for name, value in zip(names, values):
-        i = robot.actuated.index(name)
-        lo, hi = robot.lower[i], robot.upper[i]
-        if not lo - tol <= value <= hi + tol:
-            if robot.joint_kind(name) == "prismatic":
-                broken.append(f"{name} {value * 1e3:.2f} mm outside [{lo * 1e3:.1f}, {hi * 1e3:.1f}] mm")
-            else:
-                broken.append(f"{name} {np.degrees(value):.2f} deg outside "
-                              f"[{np.degrees(lo):.1f}, {np.degrees(hi):.1f}] deg")
-    return broken
-
-
 def shaft_tip_ik(robot: Robot, target) -> np.ndarray:
     """[roll, pitch, insertion] (rad, rad, m) that put ``shaft_tip`` at ``target`` (m, base frame).
 
@@ -116,7 +102,7 @@ def shaft_tip_ik(robot: Robot, target) -> np.ndarray:
                       (*_angles_of_direction(g, -d / dist), g.tip_offset - dist)]
     problems = []
     for q_arm in candidates:
-        broken = _within(robot, ARM, q_arm)
+        broken = broken_limits(robot, ARM, q_arm)
         if not broken:
             return np.array(q_arm)
         problems.append(", ".join(broken))
@@ -166,7 +152,7 @@ def wrist_ik(robot: Robot, q_arm, rotation: np.ndarray) -> np.ndarray:
             a = float(np.arctan2(np.sin(a), np.cos(a)))
             K = (_rz(a) @ A @ _rz(b) @ B).T @ R
             c = float(np.arctan2(K[1, 0], K[0, 0]))
-            broken = _within(robot, WRIST, (a, b, c))
+            broken = broken_limits(robot, WRIST, (a, b, c))
             if not broken:
                 return _polish_wrist(robot, q, np.array([a, b, c]), rotation)
         problems.append(", ".join(broken))

@@ -166,13 +166,14 @@ def pivot_angles(axis_outer: np.ndarray, axis_inner: np.ndarray, p: np.ndarray, 
     return pairs
 
 
-def _broken_limits(robot: Robot, names, values) -> list[str]:
-    """The limits that ``values`` of joints ``names`` break, as text (empty when within)."""
+def broken_limits(robot: Robot, names, values, tol: float = LIMIT_TOL) -> list[str]:
+    """The limits that ``values`` of joints ``names`` break, as text for people (empty when all are
+    within ``tol``)."""
     broken = []
     for name, value in zip(names, values):
         i = robot.actuated.index(name)
         lo, hi = robot.lower[i], robot.upper[i]
-        if not lo - LIMIT_TOL <= value <= hi + LIMIT_TOL:
+        if not lo - tol <= value <= hi + tol:
             if robot.joint_kind(name) == "prismatic":
                 broken.append(f"{name} {value * 1e3:.2f} mm outside [{lo * 1e3:.1f}, {hi * 1e3:.1f}] mm")
             else:
@@ -252,7 +253,7 @@ def _out_of_reach(robot, chain, d, usual, ranked, shown) -> RcmKinError:
     if not principal:
         return RcmKinError(f"{chain.shaft_frame} target {shown} is out of reach: no turn of "
                            f"{chain.joints[0]} and {chain.joints[1]} points the shaft at it", parameter="position")
-    needs = ", ".join(_broken_limits(robot, chain.joints, principal[0]))
+    needs = ", ".join(broken_limits(robot, chain.joints, principal[0]))
     behind = usual * float(d @ chain.shaft) < 0
     where = " (it lies on the far side of the remote centre from the instrument)" if behind else ""
     return RcmKinError(f"{chain.shaft_frame} target {shown} is out of reach{where}: it needs {needs}",
