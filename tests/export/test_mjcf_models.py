@@ -168,3 +168,21 @@ def test_offsets_are_centre_of_mass_shifts_mass_and_central_inertia_kept(tmp_pat
         shift = np.asarray(offsets.get(name, [0.0, 0.0, 0.0])) / cal.body_mass[b]   # both link frames are the body's
         np.testing.assert_allclose(cal.body_ipos[b], cad.body_ipos[b] + shift, rtol=0, atol=1e-15)
     assert np.abs(cal.body_ipos - cad.body_ipos).max() > 0.2      # the drive link's centre: 21 cm
+
+
+def test_a_tilted_base_is_held_by_its_own_gravity(tmp_path, capsys):
+    """A tilted MTM copy ([base] rpy): the MJCF's gravity is the base frame's, and MuJoCo holds the
+    arm with `rcm-kin gravity`'s torques of the tilted copy, not with the upright MTM's."""
+    import shutil
+
+    shutil.copy(urdf_dir() / "mtm.urdf", tmp_path / "mtm.urdf")
+    sidecar = tmp_path / "tilted.toml"
+    sidecar.write_text((urdf_dir() / "mtm.toml").read_text().replace('robot = "mtm"', 'robot = "tilted"')
+                       + "\n[base]\nrpy = [0.4, -0.3, 0.2]\n")
+    tilted = load_robot(sidecar)
+    assert not np.allclose(tilted.gravity, [0.0, 0.0, -9.81])
+    model, out = _export(capsys, tmp_path, str(sidecar), "tilted")
+    np.testing.assert_allclose(model.opt.gravity, tilted.gravity, rtol=1e-9)
+    for q in (np.zeros(tilted.nq), np.clip(np.full(tilted.nq, 0.3), tilted.lower, tilted.upper)):
+        assert _at_pose(model, tilted, q, _gravity(capsys, str(sidecar), q)) < HELD
+        assert _at_pose(model, tilted, q, _gravity(capsys, "mtm", q)) > 1e-3 * FALLS
