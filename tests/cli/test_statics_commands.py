@@ -138,3 +138,11 @@ def test_the_epilog_example_maps_joints_that_carry_gravity():
             taus.append(pin.computeGeneralizedGravity(model, data, q)[k])
         spread = max(taus) - min(taus)
         assert (spread > 0.05) if joint in grid else (spread < 0.01), (joint, spread)
+
+
+def test_a_map_of_another_robot_without_grid_names_its_own_joints(capsys):
+    """`torque-map mtm --out D` (no --grid): one line that suggests a --grid over the MTM's own joints, in
+    degrees over their limits, and that does not blame options the user never gave."""
+    code, out, err = run(capsys, "torque-map", "mtm", "--out", "m")
+    assert code == 2 and err.count("\n") == 1
+    assert "--grid j1=-90:90:61 j2=-90:90:61" in err and "--roll" not in err

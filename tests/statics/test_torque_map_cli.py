@@ -86,7 +86,8 @@ def test_gravity_says_which_model(capsys, renamed):
     (["torque-map", "psm", "--grid", "roll=-60:30:3", "pitch=0:1:2"], "outside its joint limits"),
     (["torque-map", "psm", "--grid", "roll=0:1:2", "pitch=0:1:2", "--at", "roll=3"], "roll is a joint of the grid"),
     (["torque-map", "psm", "--grid", "roll=0:1:2", "pitch=0:1:2", "--roll=0:1:2"], "--grid replaces --roll"),
-    (["torque-map", "mtm"], "the --roll/--pitch/--insertion form is the bundled PSM's: for mtm give the grid"),
+    (["torque-map", "mtm"], "a torque map of mtm is over two of its actuated joints"),
+    (["torque-map", "mtm", "--roll=0:1:2"], "--roll/--pitch/--insertion are the bundled PSM's: for mtm give --grid"),
     (["torque-map", "psm", "--at", "roll=3"], "--at sets the other joints of a --grid map"),
 ])
 def test_bad_input_is_one_line_and_writes_nothing(capsys, tmp_path, renamed, argv, message):

@@ -43,10 +43,12 @@ LOG_COMMANDS = ("calibrate", "sysid", "greybox", "identify", "predict", "report"
 
 def build_parser() -> Parser:
     parser = Parser(prog="rcm-kin", description=(
-        "Models of the low-cost RCM surgical robot (PSM and MTM): kinematics, dynamics, control. "
+        "Models of RCM surgical robots (the bundled PSM and MTM, or any robot by the path of its URDF or sidecar): "
+        "kinematics, dynamics, control. "
         "Units: rad, m, N m, V unless --deg; PWM in counts with the hardware sign."),
         epilog=("examples: rcm-kin fk psm 10 -5 0.08 --deg --json\n"
                 "          rcm-kin simulate psm --experiment sine --controller scheduled\n"
+                "          rcm-kin torque-map mtm --grid j1=-60:60:61 j3=-30:80:56 --out maps\n"
                 "          rcm-kin report --out report\n"
                 "every command: rcm-kin COMMAND --help (units and an example); --json for scripts"),
         formatter_class=RAW)

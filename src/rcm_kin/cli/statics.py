@@ -13,19 +13,21 @@ from rcm_kin.cli.common import (
     emit,
     finite,
     floats,
+    is_bundled_psm,
     joint_values,
     new_output,
     path_text,
     progress_wanted,
-    require_psm,
 )
 from rcm_kin.errors import RcmKinError, output_folder
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.model import load_robot
 
 PSM_GRID_DEFAULT = "-30:30:61"
+OWN_DRIVE_HELP = ("drive parameter TOML of this robot (default: the one its sidecar names; none: its URDF inertias, "
+                  "torque only)")
 EPILOG_TORQUE_MAP = ("example: rcm-kin torque-map psm --roll=-30:30:61 --pitch=-30:30:61 --insertion 0.08 --out maps\n"
-                     "any robot: rcm-kin torque-map mtm --grid j1=-60:60:61 j3=-30:80:56 --out maps  (pitch axes)\n"
+                     "any robot: rcm-kin torque-map mtm --grid j1=-60:60:61 j3=-30:80:56 --out maps (shoulder, elbow)\n"
                      "large: rcm-kin torque-map psm --roll=-30:30:1001 --pitch=-30:30:1001 --format npz --out maps\n"
                      "(write negative ranges with =, as argparse reads a leading - as an option)")
 
@@ -39,7 +41,7 @@ def add_gravity(sub) -> None:
     p.add_argument("q", nargs="*", metavar="Q", help="actuated joint values in 'info' order (rad, m); missing are 0")
     p.add_argument("--deg", action="store_true", help="revolute values in degrees")
     p.add_argument("--no-counterweights", action="store_true", help="remove the counterweights' mass")
-    add_params(p)
+    add_params(p, OWN_DRIVE_HELP)
     add_json(p, '{"joints", "tau" (N m, N), "pwm" (counts), "voltage" (V), "driven", "model"} (PWM/V of the '
                 'drive\'s joints, where the robot has a drive)')
     p.set_defaults(func=cmd_gravity)
@@ -59,12 +61,13 @@ def add_torque_map(sub) -> None:
                    help="the bundled PSM's form: roll grid LO:HI:N in degrees, N >= 2 (or LO:LO:1, one value; "
                         f"default {PSM_GRID_DEFAULT})")
     p.add_argument("--pitch", default=None,
-                   help=f"pitch grid LO:HI:N in degrees, N >= 2 (or LO:LO:1; default {PSM_GRID_DEFAULT}; at most "
+                   help=f"the bundled PSM's form: pitch grid LO:HI:N in degrees, N >= 2 (or LO:LO:1; default "
+                        f"{PSM_GRID_DEFAULT}; at most "
                         "1001 x 1001 poses in all)")
     p.add_argument("--insertion", type=finite(unit="m"), default=None,
-                   help=f"insertion in m (default {HOME_INSERTION:g})")
+                   help=f"the bundled PSM's form: insertion in m (default {HOME_INSERTION:g})")
     p.add_argument("--no-counterweights", action="store_true", help="remove the counterweights' mass")
-    add_params(p)
+    add_params(p, OWN_DRIVE_HELP)
     p.add_argument("--out", required=True, type=path_text, help="output folder (created)")
     p.add_argument("--format", choices=("csv", "npz"), default="csv",
                    help="tables as csv (text, 9 decimals; default) or npz (NumPy, full precision, one array per "
@@ -118,11 +121,23 @@ def cmd_torque_map(args) -> None:
     return psm_torque_map(args)
 
 
+def _grid_needed(args) -> str:
+    """What a torque map of a robot other than the bundled PSM needs, with its own joints as the example."""
+    if any(x is not None for x in (args.roll, args.pitch, args.insertion)):
+        return (f"--roll/--pitch/--insertion are the bundled PSM's: for {args.robot} give --grid J=LO:HI:N "
+                "J=LO:HI:N over two of its actuated joints")
+    robot = load_robot(args.robot)
+    words = [f"{n}={np.degrees(lo):g}:{np.degrees(hi):g}:61" if robot.joint_kind(n) == "revolute" else
+             f"{n}={lo:g}:{hi:g}:61" for n, lo, hi in zip(robot.actuated[:2], robot.lower, robot.upper)]
+    return (f"a torque map of {robot.name} is over two of its actuated joints ({', '.join(robot.actuated)}): give "
+            f"--grid, e.g. rcm-kin torque-map {args.robot} --grid {' '.join(words)} --out {args.out}")
+
+
 def psm_torque_map(args) -> None:
     from rcm_kin.statics.maps import check_map_size, map_drive, parse_range, write_gravity_maps
 
-    require_psm(args, "the --roll/--pitch/--insertion form is the bundled PSM's: for {robot} give the grid, e.g. "
-                      "rcm-kin torque-map {robot} --grid J=LO:HI:N J=LO:HI:N --out DIR")
+    if not is_bundled_psm(args.robot):
+        raise RcmKinError(_grid_needed(args))
     robot = load_robot("psm", counterweights=not args.no_counterweights)
     drive = map_drive(robot, args.params)            # --params of another robot: one line, nothing written
     roll_text, pitch_text = (t if t is not None else PSM_GRID_DEFAULT for t in (args.roll, args.pitch))
