@@ -25,6 +25,7 @@ agrees); a drive file of any other robot gives ``pwm_limit`` (counts) in each jo
 
 from __future__ import annotations
 
+import os
 from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Final
@@ -118,7 +119,26 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
     (:data:`rcm_kin.hardware.PWM_LIMIT`), any other robot's is read from each joint table. Every
     value is checked against its unit and range (:mod:`rcm_kin.dynamics.drive_schema`)."""
     path = Path(path) if path is not None else DEFAULT_PARAMETERS
-    raw = read_toml(path, "drive parameter file")
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError):
+        text = None                          # read_toml says what is wrong with the file
+    key = (os.path.abspath(path), text)
+    if text is not None and key in _PARSED:  # the same bytes parsed and checked before (a hot path: every
+        return _PARSED[key]                  # holding effort, map and model of a robot reads its drive)
+    params = _parsed(path, read_toml(path, "drive parameter file", text))
+    if text is not None:
+        if len(_PARSED) >= 32:
+            _PARSED.pop(next(iter(_PARSED)))
+        _PARSED[key] = params
+    return params
+
+
+_PARSED: dict[tuple[str, str], DriveParameters] = {}   # (file, its text) -> its parameters, checked
+
+
+def _parsed(path: Path, raw: dict) -> DriveParameters:
+    """The checked parameters of the drive file ``path`` parsed as ``raw``."""
     robot = raw.get("robot", None)
     if robot is None:
         warn(f"{path}: names no robot (a `robot = \"...\"` line); taken as the {SHIPPED_ROBOT}'s", RcmKinWarning)
