@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,13 +96,16 @@ def _check_turns(robot, frame: str, joints: tuple[str, ...]) -> None:
                           parameter=("rpy", "frame"))
 
 
+@functools.lru_cache(maxsize=32)
 def default_frame(robot, orientation: bool = False) -> str:
-    """The frame an IK target places when none is named (see the module docstring)."""
+    """The frame an IK target places when none is named (see the module docstring); found once per
+    robot (it depends on the model only)."""
     frames = robot.description.frames or (robot.reduced.frames[len(robot.reduced.frames) - 1].name,)
-    moved = [name for name in frames if moving_joints(robot, name)]     # a frame no joint moves has no IK
+    moving = {name: len(moving_joints(robot, name)) for name in frames}
+    moved = [name for name in frames if moving[name]]     # a frame no joint moves has no IK
     if not orientation:
         for name in reversed(moved):
-            if len(moving_joints(robot, name)) <= 3:
+            if moving[name] <= 3:
                 return name
     return moved[-1] if moved else frames[-1]
 
