@@ -10,7 +10,8 @@ ratio ``gear_ratio`` (motor rad per joint rad, or per metre for the insertion), 
     pwm       = pwm_sign * voltage / volts_per_pwm    (counts; hardware sign)
 
 A drive file describes one robot (its ``robot`` key) and the actuated joints it has tables for:
-every top-level table other than ``[gravity_offsets]`` and ``[drive_train.<joint>]`` is a joint
+every top-level table other than ``[gravity_offsets]``, ``[drive_train.<joint>]`` and ``[uncertainty]``
+(:mod:`rcm_kin.dynamics.drive_uncertainty`) is a joint
 table. The order of the tables in the file means nothing: :attr:`DriveParameters.driven`, the order
 of every per-joint array, is the robot's actuated order. A file of the bundled PSM has exactly its
 three driven joints, :data:`DRIVEN` (roll, pitch, insertion: its actuated order) as soon as it is
@@ -34,6 +35,7 @@ import numpy as np
 
 from rcm_kin.dynamics.axis_friction import AxisFriction
 from rcm_kin.dynamics.drive_schema import DRIVE_TRAIN, DRIVE_TRAIN_DEFAULT, JOINT_DRIVE, check_offset, check_table
+from rcm_kin.dynamics.drive_uncertainty import DriveUncertainty, parse_uncertainty, uncertainty_lines
 from rcm_kin.errors import ParameterFileError, RcmKinError, RcmKinWarning, read_toml, warn
 from rcm_kin.hardware import PWM_LIMIT
 from rcm_kin.model.loading import urdf_dir
@@ -81,6 +83,7 @@ class DriveParameters:
     source: str = ""
     drive_train: dict[str, AxisFriction] = field(default_factory=dict)   # identified stick-slip model per joint
     robot: str = SHIPPED_ROBOT   # the robot the file describes (its ``robot`` key)
+    uncertainty: DriveUncertainty = field(default_factory=DriveUncertainty)   # its [uncertainty] tables
 
     def __getitem__(self, joint: str) -> JointDrive:
         return self.joints[joint]
@@ -146,7 +149,7 @@ def _parsed(path: Path, raw: dict) -> DriveParameters:
     elif not isinstance(robot, str) or not robot:
         raise ParameterFileError(f"{path}: robot must be the name of the robot the file describes, got {robot!r}"[:300],
                                  path=path, table=None, key="robot")
-    tables = {k: v for k, v in raw.items() if k not in ("robot", "gravity_offsets", "drive_train")}
+    tables = {k: v for k, v in raw.items() if k not in ("robot", "gravity_offsets", "drive_train", "uncertainty")}
     if not tables:
         raise ParameterFileError(f"{path}: describes no joint (one table [<joint>] per driven joint)", path=path,
                                  table=None, key=None)
@@ -165,7 +168,7 @@ def _parsed(path: Path, raw: dict) -> DriveParameters:
     for link, value in raw.get("gravity_offsets", {}).items():
         offsets[link] = np.array(check_offset(value, path, link))
     return DriveParameters(joints, offsets, str(path), _drive_train(path, raw.get("drive_train", {}), tuple(joints)),
-                           robot)
+                           robot, parse_uncertainty(path, raw.get("uncertainty"), tuple(joints)))
 
 
 def _joint_drive(path: Path, joint: str, entry, limit: float | None) -> JointDrive:
@@ -286,6 +289,7 @@ def write_parameters(params: DriveParameters, path: str | Path, header: str = ""
     lines += [f"{link} = [{', '.join(repr(float(x)) for x in h)}]" for link, h in params.gravity_offsets.items()]
     for joint, friction in params.drive_train.items():
         lines += ["", f"[drive_train.{joint}]"] + [f"{k} = {float(v)!r}" for k, v in friction.as_dict().items()]
+    lines += uncertainty_lines(params.uncertainty)
     path = Path(path)
     try:
         path.write_text("\n".join(lines) + "\n")
