@@ -41,7 +41,8 @@ def test_a_file_without_uncertainty_has_none(tmp_path):
 ])
 def test_bad_tables_are_one_line_errors(tmp_path, table, needle):
     path = tmp_path / "bad.toml"
-    path.write_text(write_parameters(replace(load_drive_parameters(), uncertainty=DriveUncertainty()), tmp_path / "p.toml").read_text() + "\n" + table + "\n")
+    plain = write_parameters(replace(load_drive_parameters(), uncertainty=DriveUncertainty()), tmp_path / "p.toml")
+    path.write_text(plain.read_text() + "\n" + table + "\n")
     with pytest.raises(ParameterFileError) as err:
         load_drive_parameters(path)
     assert needle in str(err.value) and "\n" not in str(err.value)

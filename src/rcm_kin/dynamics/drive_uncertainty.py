@@ -97,7 +97,7 @@ def parse_uncertainty(path, raw, driven) -> DriveUncertainty:
     known = [f.name for f in fields(AxisFriction)]
     ranges = {}
     for j, table in _joint_tables(raw.get("ranges", {}), path, "ranges", driven).items():
-        if not isinstance(table, dict) or (bad := [n for n in table if n not in known]):
+        if not isinstance(table, dict) or any(n not in known for n in table):
             raise _error(path, f"ranges.{j}", f"must name drive-train parameters ({', '.join(known)})")
         ranges[j] = {n: _pair(v, DRIVE_TRAIN.get(n, DRIVE_TRAIN_DEFAULT), path, f"ranges.{j}.{n}")
                      for n, v in table.items()}
