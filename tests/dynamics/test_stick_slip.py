@@ -7,7 +7,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 import pytest
 
-from rcm_kin.dynamics.stick_slip import SUBSTEP, AxisFriction, AxisPlant, rest_state, simulate_axis
+from rcm_kin.dynamics.stick_slip import STATE_SIZE, SUBSTEP, AxisFriction, AxisPlant, rest_state, simulate_axis
 
 MASS = 0.5        # kg m^2
 COULOMB = 0.8     # N m
@@ -25,7 +25,8 @@ def test_sliding_block_stops_where_and_when_coulomb_says():
     stays. Time stepping finds the stop within one step h: |dt| <= h, |dx| <= v0 h."""
     v0 = 2.0
     friction = AxisFriction(coulomb=COULOMB)
-    state = np.array([0.0, v0, 0.0, v0, 0.0])
+    state = np.zeros(STATE_SIZE)
+    state[1] = state[3] = v0
     period = 1e-3
     angle = simulate_axis(friction, flat_plant(), np.zeros(3000), period, state)
     t_stop, x_stop = MASS * v0 / COULOMB, MASS * v0**2 / (2 * COULOMB)
@@ -40,10 +41,10 @@ def test_block_sticks_below_breakaway_and_accelerates_above_it():
     """At rest with static friction F_s: a push below F_s leaves it exactly still; above, it
     accelerates at (F - F_c) / J: x(t) = (F - F_c) t^2 / (2 J) (to O(h))."""
     friction = AxisFriction(coulomb=COULOMB, static=1.2, stribeck_velocity=1e-6)
-    below = simulate_axis(friction, flat_plant(), np.full(500, 1.19 / GAIN), 1e-3, np.zeros(5))
+    below = simulate_axis(friction, flat_plant(), np.full(500, 1.19 / GAIN), 1e-3, np.zeros(STATE_SIZE))
     assert np.all(below == 0.0)
     push = 1.5
-    above = simulate_axis(friction, flat_plant(), np.full(500, push / GAIN), 1e-3, np.zeros(5))
+    above = simulate_axis(friction, flat_plant(), np.full(500, push / GAIN), 1e-3, np.zeros(STATE_SIZE))
     t = np.arange(1, 501) * 1e-3
     exact = (push - COULOMB) * t**2 / (2 * MASS)
     assert np.max(np.abs(above - exact)) <= (push - COULOMB) / MASS * t[-1] * SUBSTEP * 1.01
@@ -135,11 +136,11 @@ def test_a_stiff_cable_tends_to_the_rigid_drive():
     at 1e6)."""
     plant = AxisPlant(-GAIN, 0.5, 3e-3, np.linspace(-1, 1, 5), np.zeros(5), np.full(5, MASS))
     push = np.full(200, -10.0)                 # negative PWM raises the angle (hardware sign)
-    rigid = simulate_axis(AxisFriction(viscous=1.0), plant, push, 1e-3, np.zeros(5))[-1]
+    rigid = simulate_axis(AxisFriction(viscous=1.0), plant, push, 1e-3, np.zeros(STATE_SIZE))[-1]
     assert rigid > 0.01
     for stiffness, tolerance in ((1e4, 1e-2), (1e6, 1e-3)):
         two_mass = simulate_axis(AxisFriction(viscous=1.0, cable_stiffness=stiffness, cable_damping=1.0), plant,
-                                 push, 1e-3, np.zeros(5))[-1]
+                                 push, 1e-3, np.zeros(STATE_SIZE))[-1]
         assert two_mass == pytest.approx(rigid, rel=tolerance), stiffness
 
 

@@ -8,10 +8,22 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
+from rcm_kin.errors import RcmKinError
+
+MAX_ELEMENTS = 4   # presliding (Maxwell-slip) elements at most: the kernels' state holds this many anchors
+DISCRETE = ("presliding_elements",)   # model choices (whole numbers): never searched, sampled or differenced
+
 
 @dataclass(frozen=True)
 class AxisFriction:
-    """Identified drive-train parameters of one axis (joint-referred SI; PWM in counts)."""
+    """Identified drive-train parameters of one axis (joint-referred SI; PWM in counts).
+
+    The presliding spring is ``presliding_elements`` = N Maxwell-slip (Iwan) elements in
+    parallel: each of stiffness ``k_p(q) / N``, element i (1..N) slipping at
+    ``F_p 2 i / (N (N + 1))``, so that the total stiffness is ``k_p`` and the forces sum to ``F_p``
+    (the whole spring's saturation force); N = 1 is the single elasto-plastic spring, larger N
+    softens it gradually instead of at one cliff. N is a model choice, never fitted
+    (:data:`DISCRETE`)."""
 
     extra_inertia: float = 0.0         # kg m^2 the CAD lacks, on the link side
     viscous: float = 0.0               # N m s/rad, link side (back-EMF damping is the drive's)
@@ -25,6 +37,15 @@ class AxisFriction:
     cable_damping: float = 0.0         # N m s/rad
     motor_coulomb: float = 0.0         # N m (joint-referred)
     motor_viscous: float = 0.0         # N m s/rad (joint-referred), beyond back-EMF
+    presliding_elements: float = 1.0   # Maxwell-slip elements of the presliding spring, a whole 1..MAX_ELEMENTS
+                                       # (a float so that vector() stays a float array)
+
+    def __post_init__(self) -> None:
+        n = self.presliding_elements
+        number = isinstance(n, (int, float, np.integer, np.floating))
+        if not (number and float(n).is_integer() and 1 <= n <= MAX_ELEMENTS):
+            raise RcmKinError(f"presliding_elements must be a whole number 1 to {MAX_ELEMENTS}, got {n!r}",
+                              parameter="presliding_elements")
 
     def vector(self) -> np.ndarray:
         """The parameters in field order, as the integration kernels take them."""

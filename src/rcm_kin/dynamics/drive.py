@@ -255,7 +255,8 @@ def model_label(params: DriveParameters | None) -> str:
 def _drive_train(path: Path, raw, driven: tuple[str, ...]) -> dict[str, AxisFriction]:
     """The ``[drive_train.<joint>]`` tables: the identified stick-slip model of each joint. Values
     are numbers (not booleans) in the ranges of :data:`rcm_kin.dynamics.drive_schema.DRIVE_TRAIN`:
-    finite, >= 0 but for the presliding slope (|s| <= 20 /rad), and a Stribeck velocity > 0."""
+    finite, >= 0 but for the presliding slope (|s| <= 20 /rad), a Stribeck velocity > 0, and the
+    presliding elements a whole number 1..4 (absent: 1)."""
     known = [f.name for f in fields(AxisFriction)]
     if not isinstance(raw, dict):
         raise ParameterFileError(f"{path}: drive_train must be tables [drive_train.<joint>] ({', '.join(driven)})",

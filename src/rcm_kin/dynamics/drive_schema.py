@@ -14,17 +14,20 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from rcm_kin.dynamics.axis_friction import MAX_ELEMENTS
 from rcm_kin.errors import ParameterFileError
 
 
 @dataclass(frozen=True)
 class Range:
-    """A finite number in ``[lo, hi]`` (``lo`` excluded when ``open_lo``) of ``unit``."""
+    """A finite number in ``[lo, hi]`` (``lo`` excluded when ``open_lo``; a whole number when
+    ``whole``) of ``unit``."""
 
     unit: str
     lo: float
     hi: float
     open_lo: bool = False
+    whole: bool = False
 
     def check(self, value, path: Path | str, table: str, key: str) -> float:
         """``value`` as a float, or an error naming the file, the table and the key."""
@@ -34,6 +37,10 @@ class Range:
         value = float(value)
         if not math.isfinite(value) or value < self.lo or value > self.hi or (self.open_lo and value == self.lo):
             raise ParameterFileError(f"{path}: [{table}] {key} = {value:.6g} is outside {self.text()}",
+                                     path=path, table=table, key=key)
+        if self.whole and not value.is_integer():
+            raise ParameterFileError(f"{path}: [{table}] {key} must be a whole number in {self.text()}, "
+                                     f"got {value:.6g}",
                                      path=path, table=table, key=key)
         return value
 
@@ -62,6 +69,7 @@ DRIVE_TRAIN = {
     "extra_inertia": Range("kg m^2", 0.0, 1e3),
     "stribeck_velocity": Range("rad/s", 0.0, 10.0, open_lo=True),
     "presliding_slope": Range("1/rad", -20.0, 20.0),
+    "presliding_elements": Range("elements", 1.0, float(MAX_ELEMENTS), whole=True),
 }
 
 GRAVITY_OFFSET = Range("kg m", -10.0, 10.0)     # [gravity_offsets] each of the 3 components

@@ -5,7 +5,7 @@ Per driven joint (joint-referred SI: rad, N m, kg m^2), with the encoder on the 
     motor:  J_m  w' = k_u u - (k_e + b_m) w - f_m - tau_c                (drive side)
     cable:  tau_c = k_c (theta - q) + d_c (w - v)                         (capstan compliance)
     link:   (M_ii(q) + J_x) v' = tau_c - g_i(q) - b v - f_l - tau_p      (link side)
-    presliding spring: tau_p = k_p(q) (q - z), |tau_p| <= F_p, z moves when the bound is hit
+    presliding spring: tau_p = sum_i k_p(q) / N (q - z_i), |k_p / N (q - z_i)| <= F_i, z_i moves at its bound
     measured angle: theta (motor angle / gear ratio)
 
 - ``k_u``, ``k_e`` (back-EMF damping) and ``J_m`` (reflected rotor inertia) are the drive's. A
@@ -15,10 +15,14 @@ Per driven joint (joint-referred SI: rad, N m, kg m^2), with the encoder on the 
 - ``f_l``, ``f_m``: set-valued friction. At rest a side stays at rest while the force on it is
   within the static friction ``F_s``; sliding, ``f = sign(v) (F_c + (F_s - F_c) exp(-(v/v_s)^2))``
   (Stribeck) plus viscous ``b v``. The motor side has Coulomb and viscous friction, no stiction.
-- ``tau_p``: an elasto-plastic (Maxwell-slip) spring: stiffness ``k_p(q) = k_p0 exp(s q)``
-  anchored at ``z``, which follows the axis only while the spring slips at ``F_p``, so the
-  spring pulls back towards where the last slip ended. This is what the roll steps show: each
-  behaves like a spring anchored at the angle where it started (held there, the spring relaxed).
+- ``tau_p``: a Maxwell-slip (Iwan) spring of N elasto-plastic elements in parallel
+  (``presliding_elements``): total stiffness ``k_p(q) = k_p0 exp(s q)`` split equally, element i
+  (1..N) anchored at ``z_i``, which follows the axis only while the element slips at
+  ``F_i = F_p 2 i / (N (N + 1))`` (the ``F_i`` sum to ``F_p``, the whole spring's saturation
+  force), so the spring pulls back towards where the last slips ended. N = 1 is one elasto-plastic
+  spring; larger N soften it in N steps (the Masing hysteresis loop of :func:`slip_elements`).
+  This is what the roll steps show: each behaves like a spring anchored at the angle where it
+  started (held there, the spring relaxed, or preloaded by the approach: :func:`rest_state`).
 - ``g_i``, ``M_ii``: gravity and inertia of the closed chain along this axis (the rigid-body
   model, tabulated over the axis angle).
 
@@ -46,7 +50,8 @@ import numba
 import numpy as np
 
 from rcm_kin import firmware_rules
-from rcm_kin.dynamics.axis_friction import AxisFriction
+from rcm_kin.dynamics.axis_friction import MAX_ELEMENTS, AxisFriction
+from rcm_kin.errors import RcmKinError
 from rcm_kin.firmware_rules import quantise, saturate
 
 if TYPE_CHECKING:
@@ -58,6 +63,7 @@ COUPLING_SWEEPS = 4   # block Gauss-Seidel sweeps of the motor-cable-link step: 
                       # error by h^2 k_c / (J_m + h^2 k_c) x h^2 k_c / M (< 0.03 up to k_c = 1e6 N m/rad)
 
 
+STATE_SIZE = 4 + MAX_ELEMENTS   # one axis's state [theta, w, q, v, z_1 .. z_MAX_ELEMENTS]; unused anchors ignored
 NAMES = tuple(f.name for f in fields(AxisFriction))
 TERM_PARAMETERS = {   # what switching a term off zeroes
     "stiction": ("static", "stribeck_velocity"),
@@ -103,13 +109,55 @@ def _implicit_friction(v, J, h, F, B, static, coulomb, stribeck):
 
 
 @numba.njit(cache=True)
-def _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h):
-    """Advance ``state = [theta, w, q, v, z]`` by ``h`` with ``pwm`` held (in place)."""
-    Jx, b, Fc, Fs, vs, kp0, sp, Fp, kc, dc, Fcm, bm = th[0], th[1], th[2], th[3], th[4], th[5], th[6], \
-        th[7], th[8], th[9], th[10], th[11]
+def force_unit(force, n):
+    """The slip force (N m) of the first of ``n`` Maxwell-slip elements whose slip forces sum to
+    ``force``: element i (1..n) slips at ``i force_unit = force 2 i / (n (n + 1))``."""
+    return force * (2.0 / (n * (n + 1)))
+
+
+@numba.njit(cache=True)
+def elements_of(th):
+    """The presliding element count of the parameter vector ``th`` (:meth:`AxisFriction.vector`,
+    clamped to 1..MAX_ELEMENTS) and their :func:`force_unit`: once per run, so that the substeps
+    divide by nothing."""
+    n = min(max(int(th[12]), 1), MAX_ELEMENTS)
+    return n, force_unit(th[7], n)
+
+
+@numba.njit(cache=True)
+def slip_elements(q, anchors, k_each, unit, n):
+    """The slip of a Maxwell-slip spring at the axis angle ``q`` (rad): each of its first ``n``
+    ``anchors`` (rad, in place) moved just enough that its element (stiffness ``k_each`` N m/rad)
+    carries at most its slip force, element i (0-based) ``(i + 1) unit`` N m (:func:`force_unit`).
+    Returns the spring's force ``sum_i k_each (q - z_i)`` (N m) after the slip."""
+    total = 0.0
+    for i in range(n):
+        bound = unit * (i + 1)
+        if k_each * (q - anchors[i]) > bound:
+            anchors[i] = q - bound / k_each
+        elif k_each * (q - anchors[i]) < -bound:
+            anchors[i] = q + bound / k_each
+        total += k_each * (q - anchors[i])
+    return total
+
+
+@numba.njit(cache=True)
+def _substep(state, th, n, unit, pwm, gravity, inertia, ku, kemf, Jm, h):
+    """Advance ``state = [theta, w, q, v, z_1 .. z_MAX_ELEMENTS]`` by ``h`` with ``pwm`` held (in place);
+    ``n, unit``: :func:`elements_of` ``th``."""
+    Jx, b, Fc, Fs, vs, kp0, sp = th[0], th[1], th[2], th[3], th[4], th[5], th[6]
+    kc, dc, Fcm, bm = th[8], th[9], th[10], th[11]   # th[7], the slip force, in ``unit``
     q = state[2]
+    # kp, the implicit step's stiffness (h kp below), is the total of all the elements, the slipping ones
+    # too: the sticking ones are what the implicit term needs (stability of the stiff spring), and a
+    # slipping element's force stays at its bound while it slips on, so counting it errs by at most
+    # h k_i |v| within the step (first order, the scheme's own), corrected by the slip at the step's end;
+    # it needs no guess of the direction of motion and keeps N = 1 today's elasto-plastic step exactly
     kp = kp0 * np.exp(sp * q) if kp0 > 0.0 else 0.0
-    spring = kp * (q - state[4])
+    k_each = kp / n
+    spring = k_each * (q - state[4])
+    for i in range(1, n):
+        spring += k_each * (q - state[4 + i])
     if kc > 0.0:   # two masses, the cable implicit in both velocities: block Gauss-Seidel sweeps
         stretch, coupling = kc * (state[0] - q), dc + h * kc
         w, v = state[1], state[3]
@@ -128,17 +176,14 @@ def _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h):
     state[2] += h * state[3]
     if kc <= 0.0:
         state[0] = state[2]
-    if kp > 0.0:   # the presliding spring slips at its bound
-        if kp * (state[2] - state[4]) > Fp:
-            state[4] = state[2] - Fp / kp
-        elif kp * (state[2] - state[4]) < -Fp:
-            state[4] = state[2] + Fp / kp
+    if kp > 0.0:   # the presliding elements slip at their bounds
+        slip_elements(state[2], state[4:], k_each, unit, n)
 
 
 @numba.njit(cache=True)
-def _step_period(state, th, pwm, grid, gtab, Mtab, ku, kemf, Jm, h, substeps):
+def _step_period(state, th, n, unit, pwm, grid, gtab, Mtab, ku, kemf, Jm, h, substeps):
     for _ in range(substeps):
-        _substep(state, th, pwm, _lookup(state[2], grid, gtab), _lookup(state[2], grid, Mtab), ku, kemf, Jm, h)
+        _substep(state, th, n, unit, pwm, _lookup(state[2], grid, gtab), _lookup(state[2], grid, Mtab), ku, kemf, Jm, h)
 
 
 @numba.njit(cache=True)
@@ -146,8 +191,9 @@ def _run(th, ku, kemf, Jm, grid, gtab, Mtab, pwm, state, period, substeps):
     """Measured angle (rad) after each held PWM sample of ``pwm``, from ``state`` (in place)."""
     out = np.empty(pwm.size)
     h = period / substeps
+    n, unit = elements_of(th)
     for k in range(pwm.size):
-        _step_period(state, th, pwm[k], grid, gtab, Mtab, ku, kemf, Jm, h, substeps)
+        _step_period(state, th, n, unit, pwm[k], grid, gtab, Mtab, ku, kemf, Jm, h, substeps)
         out[k] = state[0]
     return out
 
@@ -171,6 +217,7 @@ def _keyed_run_closed(rules: str):
         if len(rules) == 0:            # the closure's key (never empty)
             return out, applied
         h = period / substeps
+        n, unit = elements_of(th)
         origin = state[0]
         previous = origin
         for k in range(excitation.size):
@@ -178,7 +225,7 @@ def _keyed_run_closed(rules: str):
             u = _saturate(law[0] + law[1] * y + law[2] * (y - previous) / period + excitation[k], law[3], False)
             previous = y
             out[k], applied[k] = y, u
-            _step_period(state, th, u, grid, gtab, Mtab, ku, kemf, Jm, h, substeps)
+            _step_period(state, th, n, unit, u, grid, gtab, Mtab, ku, kemf, Jm, h, substeps)
         return out, applied
 
     return run_closed
@@ -190,8 +237,9 @@ _run_closed = _keyed_run_closed(RULES)
 @numba.njit(cache=True)
 def advance(th, ku, kemf, Jm, gravity, inertia, pwm, state, period, substeps):
     h = period / substeps
+    n, unit = elements_of(th)
     for _ in range(substeps):
-        _substep(state, th, pwm, gravity, inertia, ku, kemf, Jm, h)
+        _substep(state, th, n, unit, pwm, gravity, inertia, ku, kemf, Jm, h)
 
 
 def substep_count(period: float) -> int:
@@ -205,23 +253,61 @@ def advance_axis(friction_vector: np.ndarray, input_gain: float, back_emf: float
     rigid-body ``gravity`` (N m, bias forces included) and link ``inertia`` (kg m^2) frozen over
     the period: the closed-loop simulator's plant step. ``friction_vector``: :meth:`AxisFriction.vector`."""
     substeps = substep_count(period)
-    advance(friction_vector, input_gain, back_emf, rotor_inertia, gravity, inertia, pwm, state, period, substeps)
+    advance(friction_vector, input_gain, back_emf, rotor_inertia, gravity, inertia, pwm, _checked(state), period,
+            substeps)
 
 
-def rest_state(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float) -> np.ndarray:
-    """``[theta, w, q, v, z]`` at rest with the measured angle ``angle`` (rad) under ``pwm``, in the
-    static equilibrium the axis came to rest in: the cable carries the motor torque, and what the
-    rigid-body gravity leaves unbalanced loads the presliding spring (up to its slip force; any
-    rest is left to the friction, which holds it within the static friction)."""
+def virgin_offsets(force: float, k_each: float, slip: float, n: int) -> np.ndarray:
+    """Each element's stretch ``q - z_i`` (rad, (n,)) where a Maxwell-slip spring of ``n`` elements
+    (each ``k_each`` N m/rad, slipping at i :func:`force_unit` of ``slip`` N m) loaded from relaxed
+    along its virgin (Masing) curve carries ``force`` N m (``|force| <= slip``): the displacement
+    ``d`` with ``sum_i min(k_each |d|, F_i) = |force|``, element i stretched ``sign(force) min(|d|,
+    F_i / k_each)``."""
+    unit = float(force_unit(slip, n))
+    target, carried, d = abs(force), 0.0, 0.0
+    for j in range(n):   # elements j.. still elastic between the slips of j - 1 and j
+        d = (target - carried) / ((n - j) * k_each)
+        if d <= unit * (j + 1) / k_each or j == n - 1:
+            break
+        carried += unit * (j + 1)
+    sign = 1.0 if force > 0 else -1.0 if force < 0 else 0.0
+    return np.array([sign * min(d, unit * (i + 1) / k_each) for i in range(n)])
+
+
+def rest_state(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float,
+               preload: float = 0.0) -> np.ndarray:
+    """``[theta, w, q, v, z_1 .. z_MAX_ELEMENTS]`` (:data:`STATE_SIZE`) at rest with the measured angle
+    ``angle`` (rad) under ``pwm``, in the static equilibrium the axis came to rest in: the cable
+    carries the motor torque, and what the rigid-body gravity leaves unbalanced (``load``) loads the
+    presliding spring, with the presliding state a previous approach left: the spring carries
+    ``clip(load + preload F_p, -F_p, F_p)`` (``preload`` in [-1, 1]; 0: the load alone), its anchors
+    on the virgin curve that carries it (:func:`virgin_offsets`; unused anchors at ``q``). Any rest is
+    left to the friction, which holds it within the static friction."""
+    if not -1.0 <= preload <= 1.0:
+        raise RcmKinError(f"the presliding preload is a fraction of the slip force in [-1, 1], got {preload!r}",
+                          parameter="preload")
     torque = plant.input_gain * pwm
     stretch = torque / friction.cable_stiffness if friction.cable_stiffness > 0 else 0.0
     q = angle - stretch
-    anchor = q
+    state = np.full(STATE_SIZE, q)
+    state[0], state[1], state[3] = angle, 0.0, 0.0
     if friction.presliding_stiffness > 0:
+        n = int(friction.presliding_elements)
         k = friction.presliding_stiffness * np.exp(friction.presliding_slope * q)
         load = torque - np.interp(q, plant.grid, plant.gravity)
-        anchor = q - np.clip(load, -friction.presliding_force, friction.presliding_force) / k
-    return np.array([angle, 0.0, q, 0.0, anchor])
+        slip = friction.presliding_force
+        state[4:4 + n] = q - virgin_offsets(min(max(load + preload * slip, -slip), slip), k / n, slip, n)
+    return state
+
+
+def _checked(state: np.ndarray) -> np.ndarray:
+    """``state`` as the kernels advance it in place: :data:`STATE_SIZE` contiguous floats."""
+    if not (isinstance(state, np.ndarray) and state.shape == (STATE_SIZE,) and state.dtype == np.float64
+            and state.flags.c_contiguous and state.flags.writeable):
+        raise RcmKinError(f"an axis state is a writable float array of {STATE_SIZE} ([theta, w, q, v, z_1 .. "
+                          f"z_{MAX_ELEMENTS}], rest_state), got {getattr(state, 'shape', type(state).__name__)}",
+                          parameter="state")
+    return state
 
 
 def simulate_axis(friction: AxisFriction, plant: AxisPlant, pwm: np.ndarray, period: float,
@@ -230,7 +316,7 @@ def simulate_axis(friction: AxisFriction, plant: AxisPlant, pwm: np.ndarray, per
     ``state`` (see :func:`rest_state`; advanced in place)."""
     substeps = substep_count(period)
     return _run(friction.vector(), plant.input_gain, plant.back_emf, plant.rotor_inertia, plant.grid,
-                plant.gravity, plant.inertia, np.asarray(pwm, dtype=float), state, period, substeps)
+                plant.gravity, plant.inertia, np.asarray(pwm, dtype=float), _checked(state), period, substeps)
 
 
 def simulate_axis_closed(friction: AxisFriction, plant: AxisPlant, law: np.ndarray, excitation: np.ndarray,
@@ -245,7 +331,7 @@ def simulate_axis_closed(friction: AxisFriction, plant: AxisPlant, law: np.ndarr
     substeps = substep_count(period)
     return _run_closed(friction.vector(), plant.input_gain, plant.back_emf, plant.rotor_inertia, plant.grid,
                        plant.gravity, plant.inertia, np.asarray(law, dtype=float),
-                       np.asarray(excitation, dtype=float), state, period, substeps, count)
+                       np.asarray(excitation, dtype=float), _checked(state), period, substeps, count)
 
 
 def axis_plant(model: "DrivenDynamics", joint: str, pose, span: float = np.radians(45.0),

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import differential_evolution, least_squares
 
+from rcm_kin.dynamics.axis_friction import DISCRETE
 from rcm_kin.dynamics.stick_slip import (
     NAMES,
     TERM_PARAMETERS,
@@ -146,7 +147,7 @@ def closed_loop_log(path: str | Path, joint: str, start: float = 0.0, duration: 
     return _span(record, k0, k1, f"{name}@{record.time[k0]:.1f}s")
 
 
-def predict_log(friction: AxisFriction, plant: AxisPlant, log: AxisLog) -> np.ndarray:
+def predict_log(friction: AxisFriction, plant: AxisPlant, log: AxisLog, preload: float = 0.0) -> np.ndarray:
     """Predicted measured angle (rad) over ``log``: from rest at its first angle under its first
     PWM, then under its recorded PWM (a step) or under its recorded law and excitation (closed
     loop, :func:`simulate_axis_closed`). The rest is taken as the static equilibrium the log shows:
@@ -157,25 +158,28 @@ def predict_log(friction: AxisFriction, plant: AxisPlant, log: AxisLog) -> np.nd
     held from ``t_k``; the prediction at ``t_k`` is the state after ``pwm[0..k-1]``. A closed-loop
     record starts at a rest under friction, where the PWM need not balance gravity: there the
     shift makes the record's mean PWM hold its mean angle (the loop hovers about its holding
-    point; data README: "the mean PWM is close to the pitch holding effort")."""
+    point; data README: "the mean PWM is close to the pitch holding effort"). ``preload`` in [-1, 1]:
+    the presliding state the approach to the first rest left (:func:`rest_state`; 0: relaxed)."""
     if log.law is not None:
         plant, _ = at_rest(friction, plant, float(np.mean(log.measured)), float(np.mean(log.pwm)))
-        state = rest_state(friction, plant, log.measured[0], log.pwm[0])
+        state = rest_state(friction, plant, log.measured[0], log.pwm[0], preload)
         count = np.radians(ENCODER_COUNT[("roll", "pitch").index(log.joint)])
         return simulate_axis_closed(friction, plant, log.law.vector(), log.excitation, log.period, state, count)[0]
-    plant, state = at_rest(friction, plant, log.measured[0], log.pwm[0])
+    plant, state = at_rest(friction, plant, log.measured[0], log.pwm[0], preload=preload)
     out = simulate_axis(friction, plant, log.pwm[:-1], log.period, state)
     return np.r_[log.measured[0], out]
 
 
-def at_rest(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float) -> tuple[AxisPlant, np.ndarray]:
+def at_rest(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float,
+            preload: float = 0.0) -> tuple[AxisPlant, np.ndarray]:
     """``plant`` with its gravity shifted so that ``pwm`` holds the axis at rest with the measured
     (motor-side) angle ``angle`` (rad), and that rest state (:func:`rest_state`: the link behind
-    the cable's stretch, the presliding spring relaxed)."""
+    the cable's stretch, the presliding spring relaxed, or carrying ``preload`` F_p, ``preload`` in
+    [-1, 1], the state a previous approach left)."""
     state = rest_state(friction, plant, angle, pwm)
     unbalanced = plant.input_gain * pwm - np.interp(state[2], plant.grid, plant.gravity)
     plant = replace(plant, gravity=plant.gravity + unbalanced)
-    return plant, rest_state(friction, plant, angle, pwm)
+    return plant, rest_state(friction, plant, angle, pwm, preload)
 
 
 def fit_percent(measured: np.ndarray, predicted: np.ndarray) -> float:
@@ -211,14 +215,15 @@ class Search:
         return np.clip(np.array(x, dtype=float), lo, hi)
 
 
-def search_for(terms) -> Search:
-    """The free parameters of a model with ``terms`` on (see :data:`TERMS`)."""
+def search_for(terms, elements: float = 1.0) -> Search:
+    """The free parameters of a model with ``terms`` on (see :data:`TERMS`) and a presliding spring
+    of ``elements`` Maxwell-slip elements (a model choice, never searched: :data:`DISCRETE`)."""
     unknown = set(terms) - set(TERMS)
     if unknown:
         raise RcmKinError(f"unknown model term(s) {', '.join(sorted(unknown))}; the terms are {', '.join(TERMS)}")
     off = {n for t in TERMS if t not in terms for n in TERM_PARAMETERS[t]}
-    free = tuple(n for n in NAMES if n not in off)
-    return Search(AxisFriction(), free)
+    free = tuple(n for n in NAMES if n not in off and n not in DISCRETE)
+    return Search(AxisFriction(presliding_elements=elements), free)
 
 
 def residuals(friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLog]) -> np.ndarray:
@@ -351,7 +356,7 @@ def predicted_standard_errors(friction: AxisFriction, plants: list[AxisPlant], l
     RMS on every angle sample (assumed, not estimated): ``sqrt(diag(noise^2 (J^T J)^-1))``, ``J``
     the Jacobian of the predicted angles. For an experiment not run yet, ``logs`` carry the
     model's own prediction (:mod:`rcm_kin.identification.excitation`)."""
-    search = search_for(terms_of(friction))
+    search = search_for(terms_of(friction), friction.presliding_elements)
     x = search.start(friction)
     angles = lambda x: np.concatenate([predict_log(search.friction(x), p, log)  # noqa: E731
                                        for p, log in zip(plants, logs)])

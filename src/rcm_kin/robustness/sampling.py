@@ -5,7 +5,9 @@ each named by where it lives in the file:
 
 - ``drive_train.<joint>.<name>``: every non-zero parameter of the terms an identified stick-slip
   drive train has on (:class:`~rcm_kin.dynamics.stick_slip.AxisFriction`,
-  :func:`~rcm_kin.identification.drive_train.terms_of`). The smooth model's constants of
+  :func:`~rcm_kin.identification.drive_train.terms_of`), but for the model choices (the
+  presliding spring's element count, :data:`~rcm_kin.dynamics.axis_friction.DISCRETE`), which
+  stay as identified. The smooth model's constants of
   that joint (what the linearisation and the gain schedule use) follow the drawn drive train as
   ``identify`` derives them (:func:`rcm_kin.identification.identify.with_drive_trains`);
 - ``<joint>.<name>``: the smooth model's non-zero ``extra_inertia``, ``viscous`` and ``coulomb``
@@ -36,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rcm_kin.dynamics.axis_friction import DISCRETE
 from rcm_kin.dynamics.drive import DriveParameters, with_joint
 from rcm_kin.dynamics.stick_slip import TERM_PARAMETERS, TERMS
 from rcm_kin.errors import RcmKinError
@@ -116,7 +119,7 @@ def uncertain_parameters(params: DriveParameters,
     out = []
     for joint, friction in params.drive_train.items():
         on = terms_of(friction)
-        off = {name for term in TERMS if term not in on for name in TERM_PARAMETERS[term]}
+        off = {name for term in TERMS if term not in on for name in TERM_PARAMETERS[term]} | set(DISCRETE)
         out += [entry(f"drive_train.{joint}.{name}", value, "drive_train", name not in SIGNED)
                 for name, value in friction.as_dict().items() if value != 0 and name not in off]
     for joint in DRIVEN_AXES:

@@ -66,7 +66,7 @@ class CompiledPlant:
     """A plant of the loop with its CasADi functions as C entry points, ``step`` and ``initial``
     as the plant's (same state layout):
 
-    - ``DRIVE_TRAIN``: :class:`~rcm_kin.simulation.plant.DriveTrainPlant` (x (15,)); functions:
+    - ``DRIVE_TRAIN``: :class:`~rcm_kin.simulation.plant.DriveTrainPlant` (x (3 STATE_SIZE,)); functions:
       mass matrix ``q -> M`` (3 x 3, column-major), bias ``(q, v) -> h`` (3,); the stick-slip axes
       by :func:`rcm_kin.dynamics.stick_slip.advance`;
     - ``SMOOTH``: the smooth model's period map ``(x, u) -> x(T)`` (x (6,),

@@ -36,7 +36,7 @@ from numba.extending import intrinsic
 
 from rcm_kin import firmware_rules
 from rcm_kin.dynamics import stick_slip
-from rcm_kin.dynamics.stick_slip import advance
+from rcm_kin.dynamics.stick_slip import STATE_SIZE, advance
 from rcm_kin.simulation import kernel_forms
 from rcm_kin.simulation.kernel_forms import PID, THESIS, P
 
@@ -254,11 +254,11 @@ def _keyed_plant_step(physics: str):
         arg[0], arg[1], res[0] = q.ctypes.data, v.ctypes.data, h.ctypes.data
         call_c(addresses[1], arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
         for i in range(3):
-            for r in range(5):
+            for r in range(STATE_SIZE):
                 axis[r] = x[3 * r + i]
             advance(friction[i], input_gain[i], damping[i], reflected_inertia[i], h[i],
                     M[4 * i] - reflected_inertia[i], u[i], axis, period, substeps)
-            for r in range(5):
+            for r in range(STATE_SIZE):
                 x[3 * r + i] = axis[r]
 
     return plant_step
@@ -267,12 +267,13 @@ def _keyed_plant_step(physics: str):
 @numba.njit(cache=True)
 def work_buffers(work):
     """Buffers of the plant step: q, v, M, h, x(T) values, CasADi's arg, res, iw and w (``work``
-    (k, 4): each function's sizes), one axis state."""
+    (k, 4): each function's sizes). (The axis state's buffer, of the stick-slip model's
+    ``STATE_SIZE``, is made by the keyed loops: this function is keyed on this file alone.)"""
     size = np.full(4, 2, dtype=np.int64)
     for row in work:
         size = np.maximum(size, row)
     return (np.zeros(24), np.zeros(size[0], dtype=np.int64), np.zeros(size[1], dtype=np.int64),
-            np.zeros(size[2], dtype=np.int64), np.zeros(size[3]), np.zeros(5))
+            np.zeros(size[2], dtype=np.int64), np.zeros(size[3]))
 
 
 plant_step = _keyed_plant_step(SOURCES)
@@ -289,7 +290,8 @@ def _keyed_loops(physics: str):
         """One plant step per row of ``u`` (n, 3), x in place."""
         if len(physics) == 0:
             return
-        buffers, arg, res, iw, w, axis = work_buffers(work)
+        buffers, arg, res, iw, w = work_buffers(work)
+        axis = np.zeros(STATE_SIZE)
         for k in range(u.shape[0]):
             plant_step(kind, x, u[k], addresses, friction, input_gain, damping, reflected_inertia, period,
                        substeps, buffers, arg, res, iw, w, axis)
@@ -305,7 +307,8 @@ def _keyed_loops(physics: str):
         P gain (counts/m). Returns the tick where the state stopped being finite, or ``stop``."""
         if len(physics) == 0:
             return first
-        buffers, arg, res, iw, w, axis = work_buffers(work)
+        buffers, arg, res, iw, w = work_buffers(work)
+        axis = np.zeros(STATE_SIZE)
         true, measured, out, u = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
         rdot, racc, scratch = np.zeros(3), np.zeros(3), np.zeros(9)
         n_settle = noise.shape[0] - ref_fw.shape[0] - 1

@@ -23,7 +23,7 @@ import numpy as np
 
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, JointDrive, with_joint
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
-from rcm_kin.dynamics.stick_slip import AxisFriction, advance_axis
+from rcm_kin.dynamics.stick_slip import MAX_ELEMENTS, STATE_SIZE, AxisFriction, advance_axis
 from rcm_kin.errors import RcmKinError
 from rcm_kin.simulation.compiled_plant import CompiledPlant, compiled_drive_train, compiled_smooth
 from rcm_kin.symbolic.integrators import rk4_map
@@ -62,9 +62,10 @@ class DriveTrainPlant:
     """The driven joints with the identified stick-slip drive trains
     (:mod:`rcm_kin.dynamics.stick_slip`), one controller period per :meth:`step`.
 
-    State ``x`` (15,): rows ``[theta, w, q, v, z]`` of (roll, pitch, insertion) flattened, so
-    ``x[:3]`` is what the encoders see (the motor angle over the ratio, SI) and ``x[3:6]`` its
-    rate; ``q, v`` are the link's, ``z`` the presliding anchors. Each period the rigid-body mass
+    State ``x`` (3 STATE_SIZE,): rows ``[theta, w, q, v, z_1 .. z_MAX_ELEMENTS]`` of (roll, pitch,
+    insertion) flattened (:data:`~rcm_kin.dynamics.stick_slip.STATE_SIZE` rows), so ``x[:3]`` is
+    what the encoders see (the motor angle over the ratio, SI) and ``x[3:6]`` its rate; ``q, v``
+    are the link's, ``z_i`` the presliding elements' anchors. Each period the rigid-body mass
     matrix and bias forces (gravity, Coriolis) are evaluated at the period's start and held; the
     axes are coupled through them, not through the off-diagonal inertia within a period (which
     the drive inertia and friction dominate over 2.5 ms)."""
@@ -76,10 +77,10 @@ class DriveTrainPlant:
     def initial(self, position) -> np.ndarray:
         """At rest at ``position`` (rad, rad, m) with relaxed springs."""
         q = np.asarray(position, dtype=float)
-        return np.concatenate([q, np.zeros(3), q, np.zeros(3), q])
+        return np.concatenate([q, np.zeros(3), q, np.zeros(3)] + [q] * MAX_ELEMENTS)
 
     def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        state = np.array(x, dtype=float).reshape(5, 3)
+        state = np.array(x, dtype=float).reshape(STATE_SIZE, 3)
         q, v = state[2], state[3]
         M = np.array(self.model.mass_matrix(q))
         bias = np.array(self.model.bias(q, v)).ravel()
