@@ -204,7 +204,7 @@ def hull_check(log: AxisLog, hull: dict[str, tuple[float, float]] | None,
                reach: tuple[float, float]) -> tuple[bool, str]:
     """Whether ``log`` leaves the calibrated poses ``hull`` (joint: (lo, hi) rad): the other joints
     where the record holds them, its own joint over ``reach`` (the lowest and highest angle measured
-    or in the band); and a note saying where (or that the file has no hull)."""
+    or in the band's median); and a note saying where (or that the file has no hull)."""
     if not hull:
         return False, "the file has no [uncertainty.hull]: the poses were not checked against a calibration"
     outside = []
@@ -232,7 +232,7 @@ def band_of(trajectories: np.ndarray, log: AxisLog, level: float = LEVEL, source
         raise RcmKinError(f"{log.name}: {bad} of the band's {len(trajectories)} members predict a non-finite "
                           f"{log.joint} angle (is the [uncertainty] of the file sensible?)")
     lower, median, upper = np.quantile(trajectories, [(1 - level) / 2, 0.5, (1 + level) / 2], axis=0)
-    reach = (min(lower.min(), log.measured.min()), max(upper.max(), log.measured.max()))
+    reach = (min(median.min(), log.measured.min()), max(median.max(), log.measured.max()))
     extrapolated, note = hull_check(log, hull, reach)
     return PredictionBand(log.name, log.joint, log.time, log.measured, median, lower, upper, level,
                           len(trajectories), dict(sources or {"members": len(trajectories)}), dict(undetermined or {}),
