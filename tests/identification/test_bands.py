@@ -55,13 +55,13 @@ def draw(rng, count: int) -> list[tuple[AxisFriction, float]]:
 
 
 def test_a_90_percent_band_covers_90_percent_of_fresh_runs_of_the_same_distribution():
-    """Built from 128 members drawn from a known parameter and preload distribution, the 90 % band
+    """Built from 256 members drawn from a known parameter and preload distribution, the 90 % band
     holds 85-95 % of 400 fresh runs from the same distribution, pointwise on average (from the first
     sample after the step: before it every run is at the same rest). A band at the wrong quantiles
     (e.g. the 25/75 % ones, or the level read as a tail) misses this by far."""
     rng = np.random.default_rng(7)
     plant, log = pendulum(), step()
-    band = band_of(simulate_members(draw(rng, 128), plant, log), log, 0.9)
+    band = band_of(simulate_members(draw(rng, 256), plant, log), log, 0.9)
     fresh = simulate_members(draw(rng, 400), plant, log)
     inside = (fresh >= band.lower) & (fresh <= band.upper)
     assert np.ptp(fresh[:, -1]) > radians(1.0)          # the distribution really spreads the runs
