@@ -54,9 +54,12 @@ def _still_spans(time: np.ndarray, angle: np.ndarray, least: float = 0.05) -> li
             if time[min(b, time.size - 1)] - time[a] >= least]
 
 
-def prediction_figure(time, measured, predicted, path: str | Path, title: str = "") -> Path:
+def prediction_figure(time, measured, predicted, path: str | Path, title: str = "", band=None,
+                      band_label: str = "prediction band", median=None) -> Path:
     """Measured and predicted angle (deg) over time (s); bands along the bottom and the top of the
-    axes mark where the measured angle rests and where the model is stuck."""
+    axes mark where the measured angle rests and where the model is stuck. ``band``: optional
+    (lower, upper) arrays (deg, same samples) shaded as ``band_label``; ``median``: an optional
+    curve (deg) drawn dotted, the band's median."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 3.6), constrained_layout=True)
     bands = ((_still_spans(time, measured), "0.8", "measured at rest (lower band)", 0.0, 0.08),
@@ -64,8 +67,12 @@ def prediction_figure(time, measured, predicted, path: str | Path, title: str = 
     for spans, colour, label, low, high in bands:
         for k, (a, b) in enumerate(spans):
             ax.axvspan(a, b, ymin=low, ymax=high, color=colour, lw=0, label=label if k == 0 else None)
+    if band is not None:
+        ax.fill_between(time, band[0], band[1], color="tab:blue", alpha=0.25, lw=0, label=band_label)
     ax.plot(time, measured, "k", lw=1.4, label="measured")
     ax.plot(time, predicted, color="tab:green", lw=1.2, ls="--", label="predicted (recorded PWM, no refit)")
+    if median is not None:
+        ax.plot(time, median, color="tab:blue", lw=1.0, ls=":", label="band median")
     ax.set(xlabel="time (s)", ylabel="angle (deg)", title=title)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     ax.grid(alpha=0.3)

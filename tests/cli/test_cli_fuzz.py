@@ -180,7 +180,7 @@ def specs(files: dict[str, list[str]]) -> dict[str, dict]:
                      "opt": {"--joint": words(["roll", "pitch"], ["yaw"]), "--seed": counts("0"), "--force": None,
                              "--json": None, **params}},
         "predict": {"argv": ["predict", "psm"], "pos": [log], "req": {"--joint": words(["roll", "pitch"], ["yaw"])},
-                    "opt": {"--plot": files["png"], "--json": None, **params}},
+                    "opt": {"--plot": files["png"], "--band": numbers("0.9", "0.5"), "--json": None, **params}},
         "excite": {"argv": ["excite", "psm"], "req": {"--duration": numbers("10", "1", "600"),
                                                       "--out": files["out_file"]},
                    "slow": True, "guard": "--params={bad_params}",

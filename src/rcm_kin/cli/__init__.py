@@ -18,6 +18,7 @@ from rcm_kin.cli import (
     export,
     identification,
     kinematics,
+    prediction,
     robustness,
     safety,
     schedule,
@@ -35,7 +36,7 @@ COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
             control.add_dynamics, control.add_linearize, schedule.add_schedule,
             simulation.add_simulate, robustness.add_robustness, robustness.add_sweep,
             identification.add_sysid, identification.add_greybox,
-            drive_train.add_identify, drive_train.add_predict, drive_train.add_excite,
+            drive_train.add_identify, prediction.add_predict, drive_train.add_excite,
             views.add_view, safety.add_safety, views.add_report, export.add_export)
 # the commands that read telemetry logs: CSV, or ROS 2 bags whose JointState topic --topic names
 LOG_COMMANDS = ("calibrate", "sysid", "greybox", "identify", "predict", "report")

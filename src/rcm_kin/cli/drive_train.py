@@ -1,5 +1,5 @@
-"""``identify``, ``predict``: the stick-slip drive trains from measured logs, and what they predict;
-``excite``: the excitation that would identify them better."""
+"""``identify``: the stick-slip drive trains from measured logs (``predict``, what they predict:
+:mod:`rcm_kin.cli.prediction`); ``excite``: the excitation that would identify them better."""
 
 from __future__ import annotations
 
@@ -28,10 +28,6 @@ EPILOG_EXCITE = ("example: rcm-kin excite psm --duration 60 --out excitation.csv
                  "(the joints take turns, each for --duration s while the other holds at 0; the CSV is in the "
                  "telemetry format:\n __time s, <joint>/position and /effort = setpoint deg, <joint>/velocity = "
                  "feedforward PWM counts, every 2.5 ms)")
-EPILOG_PREDICT = ("example: rcm-kin predict psm roll_step_response_roll_0_pitch_0.csv --joint roll --plot roll.png "
-                  "--json\n(positions in deg, time in s; the model is driven by the log's recorded PWM, "
-                  "no refitting; a closed-loop log from its first rest with the controller that ran, read back "
-                  "from the log, in the loop)")
 
 
 def add_identify(sub) -> None:
@@ -53,18 +49,6 @@ def add_identify(sub) -> None:
     add_json(p, '{"parameters", "standard_errors", "jackknife_standard_errors", "undetermined", "logs", "fits", '
                 '"cross_validation", "skipped", "written"}')
     p.set_defaults(func=cmd_identify)
-
-
-def add_predict(sub) -> None:
-    p = sub.add_parser("predict", help="simulate a log from its recorded PWM with the identified model",
-                       parents=[psm_robot()], epilog=EPILOG_PREDICT, formatter_class=RAW)
-    p.add_argument("log", metavar="LOG", type=path_text, help="telemetry CSV (position = measured deg, velocity = PWM)")
-    p.add_argument("--joint", required=True, choices=("roll", "pitch"))
-    add_params(p, "drive parameter TOML with [drive_train.<joint>] (default: the shipped set)")
-    p.add_argument("--plot", metavar="FILE.png", help="PNG of measured and predicted angle, stick phases shaded")
-    add_force(p)
-    add_json(p, '{"fit_percent", "final_error_deg", "time" (s), "measured" (deg), "predicted" (deg)}')
-    p.set_defaults(func=cmd_predict)
 
 
 def cmd_identify(args) -> None:
@@ -100,29 +84,6 @@ def _identify_lines(result) -> list[str]:
 
 def _sigma_text(sigma: float) -> str:
     return f"+- {sigma:.2g}" if np.isfinite(sigma) else "(not determined by these logs)"
-
-
-def cmd_predict(args) -> None:
-    from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.identification.identify import predict_file
-
-    require_psm(args, "predict uses the PSM's drive trains, not the {robot}")
-    plot = new_output(args.plot, args.force, (".png",)) if args.plot is not None else None
-    log, predicted, check = predict_file(load_drive_parameters(args.params), args.log, args.joint)
-    payload = {"fit_percent": check.fit_percent, "final_error_deg": check.final_error_deg,
-               "time": log.time.tolist(), "measured": np.degrees(log.measured).tolist(),
-               "predicted": np.degrees(predicted).tolist()}
-    lines = [f"{log.name}, {args.joint}: fit {check.fit_percent:.1f} % (NRMSE), final angle measured "
-             f"{np.degrees(log.measured[-1]):.3f} deg, predicted {np.degrees(predicted[-1]):.3f} deg "
-             f"(error {check.final_error_deg:+.3f})"]
-    if plot:
-        from rcm_kin.plotting import prediction_figure
-
-        path = prediction_figure(log.time, np.degrees(log.measured), np.degrees(predicted), plot,
-                                 f"{log.name}, {args.joint}: fit {check.fit_percent:.1f} %")
-        payload["written"] = str(path)
-        lines.append(f"wrote {path}")
-    emit(args, payload, "\n".join(lines))
 
 
 def add_excite(sub) -> None:

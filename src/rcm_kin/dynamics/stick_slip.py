@@ -186,7 +186,7 @@ def _step_period(state, th, n, unit, pwm, grid, gtab, Mtab, ku, kemf, Jm, h, sub
         _substep(state, th, n, unit, pwm, _lookup(state[2], grid, gtab), _lookup(state[2], grid, Mtab), ku, kemf, Jm, h)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)   # nogil: prediction bands simulate their members on threads
 def _run(th, ku, kemf, Jm, grid, gtab, Mtab, pwm, state, period, substeps):
     """Measured angle (rad) after each held PWM sample of ``pwm``, from ``state`` (in place)."""
     out = np.empty(pwm.size)
@@ -207,7 +207,7 @@ RULES = hashlib.sha256(Path(firmware_rules.__file__).read_bytes()).hexdigest()
 def _keyed_run_closed(rules: str):
     """:func:`simulate_axis_closed`'s kernel, compiled in a closure over ``rules`` (:data:`RULES`)."""
 
-    @numba.njit(cache=True)
+    @numba.njit(cache=True, nogil=True)
     def run_closed(th, ku, kemf, Jm, grid, gtab, Mtab, law, excitation, state, period, substeps, count):
         """Measured angle (rad) at each sample under ``pwm_k = saturate(law[0] + law[1] y_k + law[2] (y_k -
         y_k-1) / period + excitation_k, law[3])`` with ``y`` the angle the encoder reads (``quantise``:

@@ -151,12 +151,11 @@ def with_drive_trains(params: DriveParameters, frictions: dict[str, AxisFriction
     return replace(params, drive_train={**params.drive_train, **frictions})
 
 
-def predict_file(params: DriveParameters, path, joint: str) -> tuple[AxisLog, np.ndarray, LogCheck]:
-    """The identified ``joint`` model on the log at ``path``, no refitting: a step log from its
-    first sample (at rest) under its recorded PWM; a closed-loop log from its first rest with the
-    controller that ran in the loop (:func:`closed_loop_log`). A log the model cannot
-    speak for (:func:`classify`'s reasons), or a prediction that leaves the model's range, is a
-    clear error. Returns the record, the predicted angle (rad) and its check."""
+def file_record(params: DriveParameters, path, joint: str) -> tuple[AxisLog, AxisPlant]:
+    """The record :func:`predict_file` simulates in the log at ``path`` and its plant: a step log
+    whole, from its first sample (at rest); a closed-loop log from its first rest with the
+    controller that ran in the loop (:func:`closed_loop_log`). A log the model cannot speak for
+    (:func:`classify`'s reasons), or a file without ``joint``'s drive train, is a clear error."""
     if joint not in params.drive_train:
         raise RcmKinError(f"{params.source} has no [drive_train.{joint}]: identify one first "
                           "(rcm-kin identify psm LOGS --out FILE.toml) and pass it with `params`", parameter="params")
@@ -164,9 +163,25 @@ def predict_file(params: DriveParameters, path, joint: str) -> tuple[AxisLog, np
     if kind == "skipped":
         raise RcmKinError(f"{Path(path).name}: cannot predict the {joint}: {reason}")
     log = whole_log(path, joint) if kind == "step" else closed_loop_log(path, joint)
-    predicted = predict_log(params.drive_train[joint], axis_plant(base_model(params), joint, log.pose), log)
+    return log, axis_plant(base_model(params), joint, log.pose)
+
+
+def predict_file(params: DriveParameters, path, joint: str) -> tuple[AxisLog, np.ndarray, LogCheck]:
+    """The identified ``joint`` model on the log at ``path`` (:func:`file_record`), no refitting:
+    a step log from its first sample under its recorded PWM, a closed-loop log in its recorded
+    loop. A prediction that leaves the model's range is a clear error. Returns the record, the
+    predicted angle (rad) and its check."""
+    log, plant = file_record(params, path, joint)
+    return log, *predict_record(params, log, plant)
+
+
+def predict_record(params: DriveParameters, log: AxisLog, plant: AxisPlant) -> tuple[np.ndarray, LogCheck]:
+    """``params``'s drive train of ``log``'s joint on ``log`` (:func:`predict_log`): the predicted
+    angle (rad) and its check, a non-finite prediction a clear error."""
+    joint = log.joint
+    predicted = predict_log(params.drive_train[joint], plant, log)
     check = check_log(log.name, log.measured, predicted, log.period)
     if not (np.all(np.isfinite(predicted)) and np.isfinite(check.fit_percent)):
         raise RcmKinError(f"{log.name}: the {joint} model's prediction is not finite (is [drive_train.{joint}] "
                           "sensible?)")
-    return log, predicted, check
+    return predicted, check

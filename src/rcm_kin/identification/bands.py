@@ -1,0 +1,278 @@
+"""Prediction bands of the identified drive train: what the model says a log does, and how sure it is.
+
+The band is an ensemble's, simulated on the log (:func:`rcm_kin.identification.drive_train.predict_log`,
+the recorded PWM or the recorded law, no refitting), its members the product of
+
+- the parameter sets: the file's own and its leave-one-log-out folds (``[uncertainty.folds]``, each
+  fitted on every log but one: how far the choice of logs moves the parameters; the local
+  Gauss-Newton errors are far narrower than that spread);
+- each parameter the logs do not determine (``[uncertainty.ranges]``), put in every set at the ends
+  and the middle of its range (the middle geometric where the range spans a decade or more);
+- the presliding spring's state before the record (``preload`` in [-1, 1], left by an approach
+  from below or above; 0 the relaxed rest), evenly spread: the logs do not record it.
+
+Pointwise, the band is the ``(1 - level) / 2`` and ``(1 + level) / 2`` quantiles of the members'
+angles, the median between them, each member counted once. It is a spread of the model, not a
+calibrated probability: how often it holds the measured angle is what :class:`PredictionBand`
+measures (``coverage``, ``final_inside``), from the sample before the step of a step log.
+
+A record that starts outside the calibrated poses (``[uncertainty.hull]``) is flagged
+``extrapolated``: the band is not widened (it carries the drive train's uncertainty, not the
+rigid-body model's away from where it was calibrated), so there it is not a confident number.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from rcm_kin.dynamics.drive import DriveParameters
+from rcm_kin.dynamics.stick_slip import AxisFriction, AxisPlant
+from rcm_kin.errors import RcmKinError
+from rcm_kin.identification.drive_train import AxisLog, LogCheck, fit_percent, predict_log
+from rcm_kin.identification.identify import file_record, predict_record
+from rcm_kin.identification.telemetry import step_index
+from rcm_kin.plotting import prediction_figure
+
+LEVEL = 0.9          # default band level
+PRELOADS = 9         # presliding preloads, evenly over [-1, 1]
+RANGE_VALUES = 3     # values of each undetermined parameter: its ends and middle
+DECADE = 10.0        # a range with hi / lo at least this is spread geometrically
+WORKERS = 4          # threads simulating the members at most (the kernels release the GIL)
+
+
+@dataclass(frozen=True)
+class Ensemble:
+    """The members of a band (parameter set, preload) and where their spread comes from: per source
+    the number of values it takes (``sources``), and the values of each undetermined parameter (SI)."""
+
+    members: tuple[tuple[AxisFriction, float], ...]
+    sources: dict[str, int]
+    undetermined: dict[str, tuple[float, ...]] = field(default_factory=dict)
+
+
+def range_values(lo: float, hi: float, count: int = RANGE_VALUES) -> np.ndarray:
+    """``count`` values over [lo, hi], both ends included: log-spaced when the range spans a decade
+    or more (``hi / lo >= 10``, ``lo > 0``), else evenly."""
+    if lo > 0 and hi / lo >= DECADE:
+        return np.geomspace(lo, hi, count)
+    return np.linspace(lo, hi, count)
+
+
+def ensemble(sets, ranges: dict[str, tuple[float, float]] | None = None, preloads: int = PRELOADS,
+             folds: int | None = None) -> Ensemble:
+    """Every parameter set of ``sets`` with each parameter of ``ranges`` (name: (lo, hi), SI) at
+    :func:`range_values`, at ``preloads`` presliding preloads evenly over [-1, 1] (1: the relaxed
+    rest, preload 0, only). ``folds``: how many of ``sets`` are fold sets (the rest the file's own);
+    None: all of them."""
+    sets = list(sets)
+    if not sets:
+        raise RcmKinError("a prediction band needs at least one parameter set", parameter="sets")
+    if preloads < 1:
+        raise RcmKinError(f"a prediction band needs at least 1 preload, got {preloads}", parameter="preloads")
+    ranges = ranges or {}
+    values = {n: tuple(float(v) for v in range_values(*ranges[n])) for n in sorted(ranges)}
+    variants = [dict()]
+    for name, vs in values.items():
+        variants = [{**v, name: x} for v in variants for x in vs]
+    loads = np.linspace(-1.0, 1.0, preloads) if preloads > 1 else np.zeros(1)
+    members = tuple((replace(s, **v), float(p)) for s in sets for v in variants for p in loads)
+    folds = len(sets) if folds is None else folds
+    sources = {"fold_sets": folds, "own_set": len(sets) - folds, **{n: len(v) for n, v in values.items()},
+               "preload": int(loads.size)}
+    return Ensemble(members, sources, values)
+
+
+def simulate_members(members, plant: AxisPlant, log: AxisLog, workers: int | None = None) -> np.ndarray:
+    """The angle (rad) each member ``(friction, preload)`` predicts over ``log``
+    (:func:`predict_log`), as rows; on up to ``workers`` threads (default: the cores, at most
+    :data:`WORKERS`)."""
+    members = list(members)
+    workers = workers or min(WORKERS, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                             else (os.cpu_count() or 1))
+    chunks = [members[k::workers] for k in range(workers)]
+
+    def run(chunk):
+        return [predict_log(f, plant, log, preload=p) for f, p in chunk]
+
+    with ThreadPoolExecutor(workers) as pool:
+        done = list(pool.map(run, chunks))
+    out = np.empty((len(members), log.measured.size))
+    for k, rows in enumerate(done):
+        if rows:
+            out[k::workers] = rows
+    return out
+
+
+def check_level(level: float) -> float:
+    """``level`` as a band level: a number strictly between 0 and 1."""
+    if not (isinstance(level, (int, float, np.floating)) and 0.0 < float(level) < 1.0):
+        raise RcmKinError(f"the band level must be strictly between 0 and 1 (e.g. 0.9), got {level!r}",
+                          parameter="level")
+    return float(level)
+
+
+def scored_from(log: AxisLog) -> int:
+    """The first sample a band is scored from: the sample before the step of a step log (the rest
+    before it says nothing about the drive train), the first of a closed-loop record."""
+    if log.law is not None:
+        return 0
+    try:
+        return max(step_index(log.pwm) - 1, 0)
+    except RcmKinError:
+        return 0
+
+
+@dataclass(frozen=True)
+class PredictionBand:
+    """A pointwise band of the predicted angle (rad) over a log, its median, and how it holds the
+    measured angle from sample ``start`` on (:func:`scored_from`)."""
+
+    name: str
+    joint: str
+    time: np.ndarray          # (n,) s
+    measured: np.ndarray      # (n,) rad
+    median: np.ndarray        # (n,) rad
+    lower: np.ndarray         # (n,) rad, the (1 - level) / 2 quantile
+    upper: np.ndarray         # (n,) rad, the (1 + level) / 2 quantile
+    level: float
+    members: int
+    sources: dict[str, int]                         # per source of uncertainty, how many values it took
+    undetermined: dict[str, tuple[float, ...]]      # the undetermined parameters and their values (SI)
+    start: int = 0
+    extrapolated: bool = False
+    note: str = ""                                  # why extrapolated (or that the poses were not checked)
+    widened: bool = False
+
+    @property
+    def coverage(self) -> float:
+        """Fraction of the samples from ``start`` whose measured angle is inside the band."""
+        s = slice(self.start, None)
+        return float(np.mean((self.measured[s] >= self.lower[s]) & (self.measured[s] <= self.upper[s])))
+
+    @property
+    def final_inside(self) -> bool:
+        return bool(self.lower[-1] <= self.measured[-1] <= self.upper[-1])
+
+    @property
+    def end_width(self) -> float:
+        """Width of the band at the last sample, rad."""
+        return float(self.upper[-1] - self.lower[-1])
+
+    @property
+    def travel(self) -> float:
+        """Measured travel from ``start`` to the end, rad."""
+        return float(self.measured[-1] - self.measured[self.start])
+
+    @property
+    def end_width_over_travel(self) -> float | None:
+        """:attr:`end_width` over the measured travel's size (None when the log did not move)."""
+        return self.end_width / abs(self.travel) if self.travel else None
+
+    @property
+    def median_fit(self) -> float:
+        """NRMSE fit (%) of the median from ``start`` on."""
+        return fit_percent(self.measured[self.start:], self.median[self.start:])
+
+    def as_dict(self) -> dict:
+        """The band in degrees, its scores and sources (the ``predict --band`` JSON's ``band``)."""
+        def deg(x):
+            return np.degrees(x).tolist()
+        return {"level": self.level, "lower": deg(self.lower), "upper": deg(self.upper), "median": deg(self.median),
+                "coverage": self.coverage, "final_inside": self.final_inside,
+                "end_width_over_travel": self.end_width_over_travel, "end_width_deg": float(np.degrees(self.end_width)),
+                "travel_deg": float(np.degrees(self.travel)), "median_fit_percent": self.median_fit,
+                "scored_from_s": float(self.time[self.start]), "members": self.members, "sources": dict(self.sources),
+                "undetermined": {n: list(v) for n, v in self.undetermined.items()},
+                "extrapolated": self.extrapolated, "widened": self.widened, "note": self.note}
+
+    def plot(self, path: str | Path, predicted: np.ndarray | None = None, title: str = "") -> Path:
+        """PNG of the measured angle, ``predicted`` (rad; default the median) and the band shaded."""
+        curve = self.median if predicted is None else predicted
+        label = f"{self.level:.0%} band ({self.members} members)" + (", extrapolated" if self.extrapolated else "")
+        return prediction_figure(self.time, np.degrees(self.measured), np.degrees(curve), path,
+                                 title or f"{self.name}, {self.joint}",
+                                 band=(np.degrees(self.lower), np.degrees(self.upper)), band_label=label,
+                                 median=np.degrees(self.median) if predicted is not None else None)
+
+
+def hull_check(log: AxisLog, hull: dict[str, tuple[float, float]] | None,
+               reach: tuple[float, float]) -> tuple[bool, str]:
+    """Whether ``log`` leaves the calibrated poses ``hull`` (joint: (lo, hi) rad): the other joints
+    where the record holds them, its own joint over ``reach`` (the lowest and highest angle measured
+    or in the band's median); and a note saying where (or that the file has no hull)."""
+    if not hull:
+        return False, "the file has no [uncertainty.hull]: the poses were not checked against a calibration"
+    outside = []
+    for k, joint in enumerate(("roll", "pitch")):
+        if joint not in hull:
+            continue
+        lo, hi = hull[joint]
+        a, b = reach if joint == log.joint else (log.pose[k], log.pose[k])
+        if a < lo or b > hi:
+            at = f"{np.degrees(a):.2f}..{np.degrees(b):.2f}" if a != b else f"{np.degrees(a):.2f}"
+            outside.append(f"{joint} {at} deg outside the calibrated {np.degrees(lo):.1f}..{np.degrees(hi):.1f} deg")
+    if not outside:
+        return False, ""
+    return True, ("; ".join(outside) + ": extrapolated, the band not widened (it carries the drive train's "
+                  "uncertainty, not the rigid-body model's outside its calibration)")
+
+
+def band_of(trajectories: np.ndarray, log: AxisLog, level: float = LEVEL, sources: dict[str, int] | None = None,
+            undetermined: dict | None = None, hull: dict[str, tuple[float, float]] | None = None) -> PredictionBand:
+    """The pointwise band of ``trajectories`` (rows: members' angles over ``log``, rad) at ``level``."""
+    level = check_level(level)
+    trajectories = np.asarray(trajectories, dtype=float)
+    if not np.all(np.isfinite(trajectories)):
+        bad = int(np.sum(~np.all(np.isfinite(trajectories), axis=1)))
+        raise RcmKinError(f"{log.name}: {bad} of the band's {len(trajectories)} members predict a non-finite "
+                          f"{log.joint} angle (is the [uncertainty] of the file sensible?)")
+    lower, median, upper = np.quantile(trajectories, [(1 - level) / 2, 0.5, (1 + level) / 2], axis=0)
+    reach = (min(median.min(), log.measured.min()), max(median.max(), log.measured.max()))
+    extrapolated, note = hull_check(log, hull, reach)
+    return PredictionBand(log.name, log.joint, log.time, log.measured, median, lower, upper, level,
+                          len(trajectories), dict(sources or {"members": len(trajectories)}), dict(undetermined or {}),
+                          scored_from(log), extrapolated, note)
+
+
+def prediction_band(sets, plant: AxisPlant, log: AxisLog, level: float = LEVEL,
+                    ranges: dict[str, tuple[float, float]] | None = None, preloads: int = PRELOADS,
+                    hull: dict[str, tuple[float, float]] | None = None, folds: int | None = None) -> PredictionBand:
+    """The band of the parameter sets ``sets`` (:class:`AxisFriction`; ``folds`` of them fold sets,
+    default all) over ``log`` on ``plant``: the :func:`ensemble` simulated (:func:`simulate_members`)
+    and its quantiles (:func:`band_of`). Sets fitted without ``log`` give its left-out band."""
+    level = check_level(level)
+    members = ensemble(sets, ranges, preloads, folds)
+    return band_of(simulate_members(members.members, plant, log), log, level, members.sources,
+                   members.undetermined, hull)
+
+
+def drive_file_band(params: DriveParameters, log: AxisLog, plant: AxisPlant, level: float = LEVEL,
+              preloads: int = PRELOADS) -> PredictionBand:
+    """The band of the drive file ``params`` over ``log`` (its ``joint``) on ``plant``: its own
+    ``[drive_train.<joint>]`` and its ``[uncertainty]`` folds, ranges and hull. A file without fold
+    sets is a clear error."""
+    joint = log.joint
+    level = check_level(level)
+    folds = params.uncertainty.folds.get(joint, ())
+    if not folds:
+        raise RcmKinError(f"no leave-one-log-out parameter sets in {params.source}: run rcm-kin identify --cv")
+    sets = [s.friction for s in folds] + [params.drive_train[joint]]
+    return prediction_band(sets, plant, log, level, params.uncertainty.ranges.get(joint), preloads,
+                           params.uncertainty.hull, folds=len(folds))
+
+
+def predict_band(params: DriveParameters, path, joint: str, level: float = LEVEL,
+                 preloads: int = PRELOADS) -> tuple[AxisLog, np.ndarray, LogCheck, PredictionBand]:
+    """``rcm-kin predict --band``: the log at ``path`` as :func:`predict_file` reads it, the file's
+    point prediction (rad) and its check, and the file's band (:func:`drive_file_band`)."""
+    level = check_level(level)
+    if not params.uncertainty.folds.get(joint):
+        raise RcmKinError(f"no leave-one-log-out parameter sets in {params.source}: run rcm-kin identify --cv")
+    log, plant = file_record(params, path, joint)
+    predicted, check = predict_record(params, log, plant)
+    return log, predicted, check, drive_file_band(params, log, plant, level, preloads)
