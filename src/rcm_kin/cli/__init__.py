@@ -12,6 +12,7 @@ import warnings
 from importlib.metadata import PackageNotFoundError, version
 
 from rcm_kin.cli import (
+    calibration,
     control,
     counterweights,
     drive_train,
@@ -32,7 +33,7 @@ from rcm_kin.identification.rosbag import DEFAULT_TOPIC, telemetry_topic
 
 # in the order of ``rcm-kin --help``
 COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
-            statics.add_gravity, statics.add_torque_map, counterweights.add_counterweights, statics.add_calibrate,
+            statics.add_gravity, statics.add_torque_map, counterweights.add_counterweights, calibration.add_calibrate,
             control.add_dynamics, control.add_linearize, schedule.add_schedule,
             simulation.add_simulate, robustness.add_robustness, robustness.add_sweep,
             identification.add_sysid, identification.add_greybox,

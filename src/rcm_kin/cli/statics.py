@@ -1,12 +1,12 @@
-"""``gravity``, ``torque-map``, ``calibrate``: what it takes to hold a pose, and the drive fit to holds."""
+"""``gravity``, ``torque-map``: what it takes to hold a pose (and, with ``--band``, the holding PWM band)."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from rcm_kin.cli.calibration import BAND_HELP, band_level
 from rcm_kin.cli.common import (
     RAW,
-    add_force,
     add_json,
     add_params,
     any_robot,
@@ -15,7 +15,6 @@ from rcm_kin.cli.common import (
     floats,
     is_bundled_psm,
     joint_values,
-    new_output,
     path_text,
     progress_wanted,
 )
@@ -42,8 +41,12 @@ def add_gravity(sub) -> None:
     p.add_argument("--deg", action="store_true", help="revolute values in degrees")
     p.add_argument("--no-counterweights", action="store_true", help="remove the counterweights' mass")
     add_params(p, OWN_DRIVE_HELP)
+    p.add_argument("--band", type=band_level, metavar="LEVEL",
+                   help=f"also the holding PWM band at this level ({BAND_HELP}) from the drive file's holding "
+                        "residuals, flagged 'extrapolated' outside the calibrated poses")
     add_json(p, '{"joints", "tau" (N m, N), "pwm" (counts), "voltage" (V), "driven", "model"} (PWM/V of the '
-                'drive\'s joints, where the robot has a drive)')
+                'drive\'s joints, where the robot has a drive); --band: "band" {"level", "lower_pwm", "upper_pwm", '
+                '"half_width_pwm", "nominal_pwm", "extrapolated", "outside", "hull_deg"}')
     p.set_defaults(func=cmd_gravity)
 
 
@@ -73,19 +76,12 @@ def add_torque_map(sub) -> None:
                    help="tables as csv (text, 9 decimals; default) or npz (NumPy, full precision, one array per "
                         "CSV column: np.load; fastest for large maps)")
     p.add_argument("--no-figures", action="store_true", help="write the tables only, not the PNG figures")
-    add_json(p, '{"files": [...], "poses": N, "model"} (--grid: also "joints")')
+    p.add_argument("--band", type=band_level, metavar="LEVEL",
+                   help=f"the tables gain the holding band at this level ({BAND_HELP}): lower_pwm_<joint>, "
+                        "upper_pwm_<joint>, extrapolated (1 outside the calibrated poses)")
+    add_json(p, '{"files": [...], "poses": N, "model"} (--grid: also "joints"; --band: "band" {"level", '
+                '"half_width_pwm", "columns", "extrapolated_poses", "hull_deg"})')
     p.set_defaults(func=cmd_torque_map)
-
-
-def add_calibrate(sub) -> None:
-    p = sub.add_parser("calibrate", help="fit drive gain and gravity offsets to measured holding efforts",
-                       epilog="example: rcm-kin calibrate ../shared/data --out my_drive.toml")
-    p.add_argument("data", type=path_text, help="folder with roll-step/*.csv and pitch-prbs/*.csv telemetry logs")
-    add_params(p, "starting drive parameter TOML (default: the shipped set)")
-    p.add_argument("--out", help="write the calibrated parameter TOML here (a new .toml file unless --force)")
-    add_force(p)
-    add_json(p, "parameters with uncertainty, residuals per point")
-    p.set_defaults(func=cmd_calibrate)
 
 
 def cmd_gravity(args) -> None:
@@ -109,8 +105,27 @@ def cmd_gravity(args) -> None:
         lines.append("driven joints (hardware PWM sign: positive decreases the angle):")
         lines += [f"{n:16} {v:+8.3f} V  {p:+8.2f} PWM" + ("  SATURATED" if s else "")
                   for n, v, p, s in zip(effort.driven, payload["voltage"], payload["pwm"], payload["saturated"])]
+    if args.band is not None:
+        lines += band_text(robot, q, drive, args.band, payload)
     lines.append(f"model: {effort.model}")
     emit(args, payload, "\n".join(lines))
+
+
+def band_text(robot, q, drive, level: float, payload: dict) -> list[str]:
+    """``gravity --band``: the band into ``payload["band"]``, and its lines for people."""
+    from rcm_kin.statics.holding_band import file_name, holding_band, hull_text
+
+    band = holding_band(robot, q, level, drive)
+    payload["band"] = band.as_dict()
+    lines = [f"holding band {level:g} (PWM, nominal -+ half-width of the left-out holding residuals):"]
+    lines += [f"{n:16} {lo:+8.2f} to {hi:+8.2f} PWM  (+-{h:.2f})"
+              for n, lo, hi, h in zip(band.joints, band.lower, band.upper, band.half_width)]
+    lines += [f"{n:16} no band: no holding residuals in {file_name(drive)}" for n in drive.driven
+              if n not in band.joints]
+    if band.extrapolated:
+        lines.append(f"extrapolated (outside the calibrated poses {hull_text(drive)}): {', '.join(band.outside)} "
+                     "outside; the band's level is not supported there")
+    return lines
 
 
 def cmd_torque_map(args) -> None:
@@ -134,6 +149,7 @@ def _grid_needed(args) -> str:
 
 
 def psm_torque_map(args) -> None:
+    from rcm_kin.statics.holding_band import residuals_of
     from rcm_kin.statics.maps import check_map_size, map_drive, parse_range, write_gravity_maps
 
     if not is_bundled_psm(args.robot):
@@ -146,10 +162,28 @@ def psm_torque_map(args) -> None:
     check_map_size(roll.size * pitch.size)           # size and limits before the output folder is made
     for corner in ((roll[0], pitch[0]), (roll[-1], pitch[-1])):
         robot.check_limits(robot.check_q([*np.radians(corner), insertion], allow_short=True))
+    if args.band is not None:
+        residuals_of(drive)                          # none in the file: one line, nothing written
     gmap, files = write_gravity_maps(robot, drive, roll, pitch, insertion, output_folder(args.out),
-                                     progress=progress_wanted(args), table=args.format, figures=not args.no_figures)
+                                     progress=progress_wanted(args), table=args.format, figures=not args.no_figures,
+                                     band=args.band)
     payload = {"files": [str(f) for f in files], "poses": int(gmap.effort.tau[..., 0].size), "model": drive.model}
-    emit(args, payload, "\n".join([*(f"wrote {f}" for f in files), f"model: {drive.model}"]))
+    emit_map(args, payload, files, drive, gmap.extra)
+
+
+def emit_map(args, payload: dict, files, drive, extra: dict) -> None:
+    """A torque map's output: the files written, the model, and with ``--band`` the band's summary."""
+    from rcm_kin.statics.holding_band import band_summary, hull_text
+
+    lines = [*(f"wrote {f}" for f in files), f"model: {payload['model']}"]
+    if args.band is not None:
+        payload["band"] = band = band_summary(drive, args.band, extra)
+        lines.append(f"holding band {args.band:g}: " + ", ".join(f"{j} +-{h:.2f} PWM"
+                                                                   for j, h in band["half_width_pwm"].items()))
+        if band["extrapolated_poses"]:
+            lines.append(f"extrapolated (outside the calibrated poses {hull_text(drive)}): "
+                         f"{band['extrapolated_poses']} of {payload['poses']} poses (column extrapolated = 1)")
+    emit(args, payload, "\n".join(lines))
 
 
 def grid_torque_map(args) -> None:
@@ -162,11 +196,11 @@ def grid_torque_map(args) -> None:
     drive = resolve_drive(robot, args.params)
     grid, q = grid_and_pose(robot, args.grid, args.at)
     tmap = torque_map(robot, grid, q, drive, counterweights=not args.no_counterweights,
-                      progress=progress_wanted(args))
+                      progress=progress_wanted(args), band=args.band)
     files = write_torque_map(tmap, output_folder(args.out), args.format, figures=not args.no_figures)
     payload = {"files": [str(f) for f in files], "poses": tmap.poses, "joints": list(tmap.joints),
                "model": tmap.model}
-    emit(args, payload, "\n".join([*(f"wrote {f}" for f in files), f"model: {tmap.model}"]))
+    emit_map(args, payload, files, tmap.params, tmap.extra)
 
 
 def grid_and_pose(robot, grid_words: list[str], at_words: list[str] | None) -> tuple[dict, np.ndarray]:
@@ -209,33 +243,3 @@ def joint_assignments(words: list[str], flag: str) -> list[tuple[str, str]]:
 def to_si(robot, joint: str, value):
     """A command-line joint value (degrees for a revolute joint, metres for a prismatic one) in rad or m."""
     return np.radians(value) if robot.joint_kind(joint) == "revolute" else value
-
-
-def cmd_calibrate(args) -> None:
-    from rcm_kin.dynamics.drive import check_drive, load_drive_parameters, write_parameters
-    from rcm_kin.identification.calibration import UNITS, calibrate, calibration_logs, holding_points
-
-    psm = load_robot("psm")
-    base = check_drive(psm, load_drive_parameters(args.params))   # another robot's file: one line, before the data
-    out = new_output(args.out, args.force, (".toml",)) if args.out is not None else None
-    points = holding_points(calibration_logs(args.data))
-    result = calibrate(psm, base, points)
-    fitted = list(zip(result.names, result.values, result.std, UNITS))
-    payload = {"parameters": {n: {"value": float(v), "std": float(s), "unit": u} for n, v, s, u in fitted},
-               "residual_rms_pwm": result.residual_rms.tolist(), "friction_band_pwm": result.friction_band.tolist(),
-               "points": [{"source": p.source, "roll_deg": float(np.degrees(p.roll)),
-                           "pitch_deg": float(np.degrees(p.pitch)), "measured_pwm": [p.pwm_roll, p.pwm_pitch],
-                           "predicted_pwm": pred.tolist()} for p, pred in zip(points, result.predicted)]}
-    if out:
-        header = (f"Drive parameters calibrated by `rcm-kin calibrate` on {len(points)} holding points.\n"
-                  + "\n".join(f"{n} = {v:.6g} +- {s:.2g} {u}" for n, v, s, u in fitted)
-                  + f"\nresidual RMS roll {result.residual_rms[0]:.2f}, pitch {result.residual_rms[1]:.2f} PWM; "
-                  f"largest |residual| roll {result.friction_band[0]:.2f}, pitch {result.friction_band[1]:.2f} PWM."
-                  "\nFormat and assumed constants: see the shipped urdf/psm_drive.toml.")
-        payload["written"] = str(write_parameters(result.parameters, out, header))
-    lines = [f"{n:20} {v:+.6g} +- {s:.2g} {u}" for n, v, s, u in fitted]
-    lines.append(f"residual RMS: roll {result.residual_rms[0]:.2f}, pitch {result.residual_rms[1]:.2f} PWM "
-                 f"over {len(points)} holding points")
-    if out:
-        lines.append(f"wrote {payload['written']}")
-    emit(args, payload, "\n".join(lines))

@@ -117,16 +117,18 @@ def predict_pwm(robot: Robot, params: DriveParameters, points) -> np.ndarray:
     return pwm[:, [params.driven.index(j) for j in ("roll", "pitch")]]    # by name: any order of the file
 
 
-def calibrate(robot: Robot, base: DriveParameters, points) -> CalibrationResult:
+def calibrate(robot: Robot, base: DriveParameters, points, start=None) -> CalibrationResult:
     """Least-squares fit of PARAMETERS to measured holding points (at least 4), starting from
-    ``base``, the drive parameters of ``robot`` (checked: :func:`check_drive`)."""
+    ``base``, the drive parameters of ``robot`` (checked: :func:`check_drive`): from its
+    ``volts_per_pwm`` and zero offsets, or from ``start`` (values of PARAMETERS, e.g. a fit on more
+    holds, which the leave-one-out refits start from)."""
     base = check_drive(robot, base)
     points = tuple(points)
     if len(points) < 4:
         raise RcmKinError(f"calibration needs at least 4 holding points, got {len(points)}")
     measured = np.array([[p.pwm_roll, p.pwm_pitch] for p in points])
-    x0 = np.array([base["pitch"].volts_per_pwm, 0.0, 0.0, 0.0])
-    scale = np.array([x0[0], 0.1, 0.1, 0.1])
+    scale = np.array([base["pitch"].volts_per_pwm, 0.1, 0.1, 0.1])
+    x0 = scale * [1.0, 0.0, 0.0, 0.0] if start is None else np.asarray(start, dtype=float)
     lower = np.array([1e-3, -np.inf, -np.inf, -np.inf])   # volts_per_pwm > 0
 
     def residual(x):

@@ -16,7 +16,7 @@ revolute joints in degrees (for people), prismatic in metres.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -31,6 +31,7 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.model.loading import build_robot
 from rcm_kin.model.masses import require_masses
 from rcm_kin.plotting import torque_heatmaps
+from rcm_kin.statics.holding_band import band_columns
 from rcm_kin.statics.maps import HoldingEffort, check_map_size, drive_effort_blocks
 from rcm_kin.symbolic.compiled import map_points
 from rcm_kin.symbolic.points import CompiledPoints, compiled_points
@@ -67,6 +68,7 @@ class TorqueMap:
     driven: tuple[str, ...] = ()
     tau_units: tuple[str, ...] = ()     # per actuated joint: "N m" (revolute) or "N" (prismatic)
     params: DriveParameters | None = None   # the drive used (None: CAD, torque only)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)   # more table columns, (A, B) each: a band's
 
     @property
     def dims(self) -> tuple[str, str, str]:
@@ -108,10 +110,12 @@ class TorqueMap:
 
     def header(self) -> list[str]:
         """Column names of the table: the grid joints (``_deg`` or ``_m``), ``tau_<joint>`` of every
-        actuated joint, then ``voltage_<joint>``, ``pwm_<joint>`` of the drive's joints."""
+        actuated joint, then ``voltage_<joint>``, ``pwm_<joint>`` of the drive's joints, then those of
+        :attr:`extra` (a band's: ``lower_pwm_<joint>``, ``upper_pwm_<joint>``, ``extrapolated``)."""
         grid = [f"{j}_{'deg' if u == 'rad' else 'm'}" for j, u in zip(self.joints, self.units)]
         return (grid + [f"tau_{j}" for j in self.actuated]
-                + [f"{x}_{j}" for x in ("voltage", "pwm") for j in (self.driven if self.effort is not None else ())])
+                + [f"{x}_{j}" for x in ("voltage", "pwm") for j in (self.driven if self.effort is not None else ())]
+                + list(self.extra))
 
     def rows(self, start: int, stop: int) -> np.ndarray:
         """Rows ``start:stop`` of the table (:meth:`header`; ``joint_a`` slowest)."""
@@ -121,6 +125,7 @@ class TorqueMap:
         if self.effort is not None:
             n = len(self.driven)
             columns += [self.effort.voltage.reshape(-1, n)[start:stop], self.effort.pwm.reshape(-1, n)[start:stop]]
+        columns += [x.reshape(-1)[start:stop] for x in self.extra.values()]
         return np.column_stack(columns)
 
     def write(self, path: str | Path, block: int = 1 << 14) -> Path:
@@ -201,12 +206,14 @@ def _rebuilt(robot: Robot, counterweights: bool) -> Robot:
 
 
 def torque_map(robot: Robot, grid: dict, q=None, drive=None, counterweights: bool = True,
-               progress: bool = False) -> TorqueMap:
+               progress: bool = False, band: float | None = None) -> TorqueMap:
     """Holding effort of ``robot`` over ``grid`` = ``{joint_a: values, joint_b: values}`` (two actuated
     joints, rad or m), the other actuated joints at ``q`` (default :func:`default_pose`): a
     :class:`TorqueMap`. Torque of every actuated joint always; with a drive (``drive`` given,
     checked against the robot, else the sidecar's) its gravity offsets, voltage and PWM of its joints.
-    ``counterweights=False``: without the counterweights' mass."""
+    ``counterweights=False``: without the counterweights' mass. ``band``: a level in (0, 1), the map
+    gains its drive's holding band as table columns (:func:`rcm_kin.statics.holding_band.band_columns`;
+    a drive is then required)."""
     names, values = grid_axes(robot, grid)
     if names[0] == names[1]:
         raise RcmKinError(f"the grid names {names[0]} twice: give two different joints", parameter="grid")
@@ -220,13 +227,20 @@ def torque_map(robot: Robot, grid: dict, q=None, drive=None, counterweights: boo
     q[ia], q[ib] = values[0][0], values[1][0]
     offsets = {} if params is None else params.gravity_offsets
     tau = map_gravity(robot, offsets, q, (ia, ib), values, progress)
-    effort = None
+    effort, extra = None, {}
     if params is not None:
         driven = tau[..., [robot.actuated.index(j) for j in params.driven]]
         effort = drive_effort_blocks(params, driven)
+    if band is not None:
+        if params is None:
+            raise RcmKinError(f"a holding band is in PWM and {robot.name} has no drive: give `drive`",
+                              parameter="drive")
+        poses = {j: (values[0][:, None] if j == names[0] else values[1][None, :] if j == names[1] else
+                     np.asarray(q[robot.actuated.index(j)])) for j in params.driven if j in robot.actuated}
+        extra = band_columns(params, params.driven, effort.pwm, poses, band)
     return TorqueMap(robot.name, names, values, tuple(unit_of(robot, n) for n in names), q, robot.actuated, tau,
                      effort, model_label(params), () if params is None else params.driven,
-                     tuple("N" if unit_of(robot, j) == "m" else "N m" for j in robot.actuated), params)
+                     tuple("N" if unit_of(robot, j) == "m" else "N m" for j in robot.actuated), params, extra)
 
 
 def map_gravity(robot: Robot, offsets: dict, q: np.ndarray, index: tuple[int, int], values, progress: bool = False,

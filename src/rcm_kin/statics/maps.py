@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import functools
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, ClassVar
 
@@ -34,6 +34,7 @@ from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.model.gravity import gravity_batch
 from rcm_kin.model.masses import require_masses
 from rcm_kin.plotting import effort_heatmaps, insertion_curves, thesis_trend_curves
+from rcm_kin.statics.holding_band import band_columns
 from rcm_kin.symbolic.compiled import compiled, map_points
 
 if TYPE_CHECKING:
@@ -69,6 +70,7 @@ class GravityMap:
     pitch_deg: np.ndarray       # (P,) grid values, deg
     insertion: np.ndarray       # (I,) grid values, m
     effort: DriveEffort         # arrays of shape (P, R, I, 3)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)   # more table columns, (P, R, I) each: a band's
 
     dims: ClassVar[tuple[str, ...]] = ("pitch", "roll", "insertion", "joint")
     units: ClassVar[dict[str, str]] = {"roll": "deg", "pitch": "deg", "insertion": "m", "tau": "N m (insertion: N)",
@@ -264,9 +266,19 @@ def _compiled_gravity(robot: Robot, offsets: tuple) -> ca.Function:
     return compiled(driven_gravity_function(robot, {link: np.array(h) for link, h in offsets}, joints=DRIVEN))
 
 
-def table_header() -> list[str]:
-    """Column names of a map's table (CSV header, .npz array names), in order."""
-    return ["roll_deg", "pitch_deg", "insertion_m"] + [f"{q}_{j}" for q in ("tau", "voltage", "pwm") for j in DRIVEN]
+def table_header(gmap: GravityMap | None = None) -> list[str]:
+    """Column names of a map's table (CSV header, .npz array names), in order; those of ``gmap.extra``
+    (a band's) last."""
+    return (["roll_deg", "pitch_deg", "insertion_m"] + [f"{q}_{j}" for q in ("tau", "voltage", "pwm") for j in DRIVEN]
+            + list(gmap.extra if gmap is not None else ()))
+
+
+def with_band(gmap: GravityMap, drive: DriveParameters, level: float) -> GravityMap:
+    """``gmap`` with its level-``level`` holding band as more columns
+    (:func:`rcm_kin.statics.holding_band.band_columns`: lower/upper PWM, extrapolated)."""
+    poses = {"roll": np.radians(gmap.roll_deg)[None, :, None], "pitch": np.radians(gmap.pitch_deg)[:, None, None],
+             "insertion": gmap.insertion[None, None, :]}
+    return replace(gmap, extra=band_columns(drive, DRIVEN, gmap.effort.pwm, poses, level))
 
 
 def table_rows(gmap: GravityMap, start: int, stop: int) -> np.ndarray:
@@ -275,14 +287,15 @@ def table_rows(gmap: GravityMap, start: int, stop: int) -> np.ndarray:
     e = gmap.effort
     p, r, i = np.unravel_index(np.arange(start, min(stop, e.tau[..., 0].size)), e.tau.shape[:3])
     return np.column_stack([gmap.roll_deg[r], gmap.pitch_deg[p], gmap.insertion[i]]
-                           + [x.reshape(-1, 3)[start:stop] for x in (e.tau, e.voltage, e.pwm)])
+                           + [x.reshape(-1, 3)[start:stop] for x in (e.tau, e.voltage, e.pwm)]
+                           + [x.reshape(-1)[start:stop] for x in gmap.extra.values()])
 
 
 def write_csv(gmap: GravityMap, path: str | Path, block: int = 1 << 14) -> Path:
     """The map's table as CSV (9 decimals, :mod:`rcm_kin.csv_table`), written in blocks of
     ``block`` rows."""
     poses = gmap.effort.tau[..., 0].size
-    return write_csv_blocks(path, table_header(), (table_rows(gmap, i, i + block) for i in range(0, poses, block)))
+    return write_csv_blocks(path, table_header(gmap), (table_rows(gmap, i, i + block) for i in range(0, poses, block)))
 
 
 def write_npz(gmap: GravityMap, path: str | Path) -> Path:
@@ -298,9 +311,10 @@ def write_npz(gmap: GravityMap, path: str | Path) -> Path:
                for name, (values, axis) in axes.items()}
     columns.update({f"{q}_{j}": getattr(e, q).reshape(-1, 3)[:, k]
                     for q in ("tau", "voltage", "pwm") for k, j in enumerate(DRIVEN)})
+    columns.update({name: x.reshape(-1) for name, x in gmap.extra.items()})
     try:
         with path.open("wb") as fh:                      # np.savez would append ".npz" to another suffix
-            np.savez(fh, **{name: columns[name] for name in table_header()})
+            np.savez(fh, **{name: columns[name] for name in table_header(gmap)})
     except OSError as exc:
         raise RcmKinError(f"cannot write {path}: {exc.strerror}") from None
     return path
@@ -312,18 +326,22 @@ TABLE_WRITERS = {"csv": write_csv, "npz": write_npz}     # table format -> write
 def write_gravity_maps(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg, insertion: float, out: Path,
                        progress: bool = False, sweep_roll_deg=(0.0, 20.0),
                        sweep_pitch_deg=(-20.0, 0.0, 20.0), table: str = "csv",
-                       figures: bool = True) -> tuple[GravityMap, list[Path]]:
+                       figures: bool = True, band: float | None = None) -> tuple[GravityMap, list[Path]]:
     """The roll x pitch map at one insertion (m) and an insertion sweep over the whole insertion
     range at the poses ``sweep_roll_deg`` x ``sweep_pitch_deg`` (at roll = pitch = 0 the shaft
     hangs through both axes and nothing depends on the insertion), in folder ``out``: their
     tables torque_map.csv and insertion_map.csv (``table`` "npz": .npz, see :func:`write_npz`)
-    and, with ``figures``, torque_map.png, trend_curves.png, insertion_map.png."""
+    and, with ``figures``, torque_map.png, trend_curves.png, insertion_map.png. ``band``: a level in
+    (0, 1), the tables gain the holding band's columns (:func:`with_band`)."""
     if table not in TABLE_WRITERS:
         raise RcmKinError(f"table format '{table}': use one of {', '.join(TABLE_WRITERS)}")
     write_table = TABLE_WRITERS[table]
     gmap = gravity_map(robot, drive, roll_deg, pitch_deg, [insertion], progress=progress)
     i = robot.actuated.index("insertion")
     sweep = gravity_map(robot, drive, sweep_roll_deg, sweep_pitch_deg, np.linspace(robot.lower[i], robot.upper[i], 81))
+    if band is not None:
+        params = map_drive(robot, drive)
+        gmap, sweep = with_band(gmap, params, band), with_band(sweep, params, band)
 
     def write_tables() -> list[Path]:
         return [write_table(gmap, out / f"torque_map.{table}"), write_table(sweep, out / f"insertion_map.{table}")]
