@@ -36,6 +36,7 @@ from rcm_kin.identification.drive_train import (
     whole_log,
 )
 from rcm_kin.identification.log_catalog import CatalogEntry, catalog, classify
+from rcm_kin.identification.speed_bounds import SpeedBound, speed_bounds
 from rcm_kin.identification.telemetry import load_telemetry
 from rcm_kin.model import load_robot
 
@@ -53,6 +54,7 @@ class JointIdentification:
     logs: tuple[str, ...]                  # the logs fitted
     fits: tuple[LogCheck, ...]             # in-sample, per log
     cross_validation: tuple[LogCheck, ...]  # leave-one-log-out (empty without cv)
+    bounds: tuple[SpeedBound, ...] = ()    # the constraints the fit satisfied (speed_bounds)
 
 
 @dataclass(frozen=True)
@@ -74,7 +76,8 @@ class Identification:
                 "fits": {j: {c.name: check(c) for c in r.fits} for j, r in self.joints.items()},
                 "cross_validation": {j: {c.name: check(c) for c in r.cross_validation}
                                      for j, r in self.joints.items()},
-                "skipped": {f"{e.path.name} ({e.joint})": e.reason for e in self.skipped}}
+                "skipped": {f"{e.path.name} ({e.joint})": e.reason for e in self.skipped},
+                "constraints": {j: {b.name: b.as_dict(r.friction) for b in r.bounds} for j, r in self.joints.items()}}
 
 
 def _finite(errors: dict[str, float]) -> dict[str, float]:
@@ -100,20 +103,21 @@ def joint_records(entries: list[CatalogEntry], model: DrivenDynamics,
 
 
 def identify_joint(joint: str, logs: list[AxisLog], plants: list[AxisPlant], cv: bool, terms=None,
-                   seed: int = 0, progress=None) -> JointIdentification:
-    """Fit ``joint``'s drive train on ``logs`` (and cross-validate, leaving one log out);
-    ``progress()`` is called once per generation of every search."""
+                   seed: int = 0, progress=None, bounds=()) -> JointIdentification:
+    """Fit ``joint``'s drive train on ``logs`` subject to ``bounds`` (:mod:`speed_bounds`; and
+    cross-validate, leaving one log out); ``progress()`` is called once per generation of every search."""
     search = search_for(TERMS.get(joint, DEFAULT_TERMS) if terms is None else terms)
-    friction, sigma = fit_friction(search, plants, logs, seed=seed, generations=GENERATIONS[0], progress=progress)
+    friction, sigma = fit_friction(search, plants, logs, seed=seed, generations=GENERATIONS[0], progress=progress,
+                                   speed_bounds=bounds)
     fits = tuple(check_log(log.name, log.measured, predict_log(friction, p, log), log.period)
                  for log, p in zip(logs, plants))
     checks, folds = [], []
     if cv:
         checks, folds = leave_one_out(search, plants, logs, seed=seed, generations=GENERATIONS[1],
-                                      progress=progress)
+                                      progress=progress, speed_bounds=bounds)
     return JointIdentification(joint, friction, dict(zip(search.free, map(float, sigma))),
                                jackknife_errors(folds, search.free) if folds else {},
-                               tuple(log.name for log in logs), fits, tuple(checks))
+                               tuple(log.name for log in logs), fits, tuple(checks), tuple(bounds))
 
 
 def identify(paths, params: DriveParameters | None = None, joints=("roll",), cv: bool = False,
@@ -136,9 +140,23 @@ def identify(paths, params: DriveParameters | None = None, joints=("roll",), cv:
     with tqdm(total=total, desc="identify", unit="generation", disable=not progress) as bar:
         for joint, (logs, plants) in records.items():
             bar.set_postfix_str(f"{joint}: {len(logs)} logs")
-            results[joint] = identify_joint(joint, logs, plants, cv, seed=seed, progress=lambda: bar.update())
+            bounds = speed_bounds(model, params, joint, _ramp_candidates(entries) if joint == "pitch" else ())
+            results[joint] = identify_joint(joint, logs, plants, cv, seed=seed, progress=lambda: bar.update(),
+                                            bounds=bounds)
     skipped = tuple(e for e in entries if e.kind == "skipped")
     return Identification(results, skipped, with_drive_trains(params, {j: r.friction for j, r in results.items()}))
+
+
+def _ramp_candidates(entries: list[CatalogEntry]) -> list:
+    """The logs the pitch skipped that could be its PWM ramp (read again; unreadable ones left out)."""
+    out = []
+    for e in entries:
+        if e.joint == "pitch" and e.kind == "skipped" and e.path.suffix == ".csv":
+            try:
+                out.append(load_telemetry(e.path))
+            except RcmKinError:
+                continue
+    return out
 
 
 def with_drive_trains(params: DriveParameters, frictions: dict[str, AxisFriction]) -> DriveParameters:

@@ -41,6 +41,7 @@ from rcm_kin.thesis import SINE_AMPLITUDE_DEG, SINE_CYCLE_S, SINE_TRACKING_ERROR
 
 AXES = ("roll", "pitch")
 RAMP_LEVELS = 20      # distinct PWM levels that make a log a ramp (the ramp log has about 130)
+RAMP_START = 2.0      # counts: a ramp starts within this of 0
 ACTIVE = 0.01         # a bound within this fraction of its limit is active
 
 
@@ -98,13 +99,13 @@ def sinusoid_bound(model: DrivenDynamics, params: DriveParameters, joint: str) -
 
 
 def is_ramp(log: TelemetryLog) -> bool:
-    """Whether ``log`` is the pitch's open-loop PWM ramp: the pitch PWM from 0, monotone, through at
-    least :data:`RAMP_LEVELS` levels."""
+    """Whether ``log`` is the pitch's open-loop PWM ramp: the pitch PWM from about 0 (the log's first
+    sample reads -1), monotone, through at least :data:`RAMP_LEVELS` levels."""
     if "pitch" not in log.pwm or "pitch" not in log.position:
         return False
     u = log.pwm["pitch"]
     steps = np.diff(u)
-    return bool(u[0] == 0.0 and np.unique(u).size >= RAMP_LEVELS and (np.all(steps <= 0) or np.all(steps >= 0)))
+    return bool(abs(u[0]) <= RAMP_START and np.unique(u).size >= RAMP_LEVELS and (np.all(steps <= 0) or np.all(steps >= 0)))
 
 
 def damping_bound(source, params: DriveParameters) -> dict:
