@@ -89,11 +89,12 @@ def sinusoid_bound(model: DrivenDynamics, params: DriveParameters, joint: str) -
     k = AXES.index(joint)
     speed = np.radians(SINE_AMPLITUDE_DEG[k]) * 2.0 * np.pi / SINE_CYCLE_S
     hold = abs(float(holding_pwm(model, np.array([0.0, 0.0, HOME_INSERTION]))[model.joints.index(joint)]))
-    effort = P_GAINS[k] * SINE_TRACKING_ERROR_DEG[("p", joint)][0]
+    error = SINE_TRACKING_ERROR_DEG[("p", joint)][0]
+    effort = P_GAINS[k] * error
     gain = abs(float(drive_constants(params).input_gain[DRIVEN.index(joint)]))
     limit = gain * (effort - hold) - back_emf(params, joint) * speed
     return SpeedBound(f"{joint}_p_sinusoid", joint, float(speed), float(limit),
-                      f"thesis Sec. 5.2.1: Kp {P_GAINS[k]:g} x max error {SINE_TRACKING_ERROR_DEG[('p', joint)][0]:g} deg "
+                      f"thesis Sec. 5.2.1: Kp {P_GAINS[k]:g} x max error {error:g} deg "
                       f"= {effort:.1f} PWM, minus the holding {hold:.1f} PWM at roll = pitch = 0, at "
                       f"{np.degrees(speed):.1f} deg/s")
 
@@ -105,7 +106,8 @@ def is_ramp(log: TelemetryLog) -> bool:
         return False
     u = log.pwm["pitch"]
     steps = np.diff(u)
-    return bool(abs(u[0]) <= RAMP_START and np.unique(u).size >= RAMP_LEVELS and (np.all(steps <= 0) or np.all(steps >= 0)))
+    monotone = np.all(steps <= 0) or np.all(steps >= 0)
+    return bool(abs(u[0]) <= RAMP_START and np.unique(u).size >= RAMP_LEVELS and monotone)
 
 
 def damping_bound(source, params: DriveParameters) -> dict:
