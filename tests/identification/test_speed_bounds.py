@@ -71,7 +71,7 @@ def test_a_fit_that_violates_a_bound_is_pulled_onto_it():
                          presliding_slope=2.0, presliding_force=1.5)
     plant, logs = _steps(truth)
     bound = SpeedBound("test", "roll", 0.7, 0.8 * sliding_friction(truth, 0.7), "synthetic")
-    search = search_for(("presliding",))
+    search = search_for(("viscous", "presliding"))
     free, _ = fit_friction(search, [plant] * 3, logs, seed=3, generations=30)
     assert bound.value(free) > 1.1 * bound.max_force                 # the unconstrained fit violates it
     held, _ = fit_friction(search, [plant] * 3, logs, seed=3, generations=30, speed_bounds=(bound,))

@@ -98,6 +98,7 @@ def _identify_lines(result) -> list[str]:
             value = b.value(r.friction)
             lines.append(f"  constraint {b.name}: friction at {np.degrees(b.speed):.0f} deg/s {value:.3g} <= "
                          f"{b.max_force:.3g} N m" + (" (active)" if b.active(r.friction) else "") + f"  [{b.source}]")
+    lines += [f"note {e.path.name} ({e.joint}): {e.note}" for e in result.notes]
     lines += [f"skipped {e.path.name} ({e.joint}): {e.reason}" for e in result.skipped]
     return lines
 

@@ -35,7 +35,7 @@ from rcm_kin.dynamics.stick_slip import (
     simulate_axis_closed,
 )
 from rcm_kin.errors import RcmKinError
-from rcm_kin.hardware import ENCODER_COUNT, HOME_INSERTION, PWM_LIMIT
+from rcm_kin.hardware import ENCODER_COUNT, HOME_INSERTION, PITCH_REST_DEG, PWM_LIMIT
 from rcm_kin.identification.log_checks import LogCheck, check_log, fit_percent, stick_time  # noqa: F401 (re-exported)
 from rcm_kin.identification.recorded_law import RecordedLaw, recover_law
 from rcm_kin.identification.records import resample, tick_period
@@ -51,7 +51,7 @@ BOUNDS = {
     "cable_stiffness": (5.0, 1e4, "log"), "cable_damping": (0.0, 30.0), "motor_coulomb": (0.0, 1.0),
     "motor_viscous": (0.0, 10.0),
 }
-DEFAULT_TERMS = ("presliding",)
+DEFAULT_TERMS = ("viscous", "presliding")
 PENALTY = 100.0        # weight of a bound's relative excess beside the residuals (each log's about 1)
 
 
@@ -85,14 +85,15 @@ def whole_log(source: str | Path | TelemetryLog, joint: str, period: float | Non
     samples themselves as controller ticks at their mean interval (a closed-loop log: the firmware
     acted once per logged sample; its time stamps are whole milliseconds, so intervals read 2 or
     3 ms around a 2.4 ms loop). From its first sample (taken at rest); the other axis held at its
-    mean logged angle (0 when not logged)."""
+    mean logged angle (when not logged: the roll at 0, the pitch resting on its lower stop,
+    :data:`~rcm_kin.hardware.PITCH_REST_DEG`: see :mod:`rcm_kin.identification.log_catalog`)."""
     log = source if isinstance(source, TelemetryLog) else load_telemetry(source)
     if period is None:
         log.require(joint)
         u, y, period = log.pwm[joint], log.position[joint], tick_period(log)
     else:
         u, y, period = resample(log, joint, period)
-    pose = np.array([0.0, 0.0, HOME_INSERTION])
+    pose = np.array([0.0, np.radians(PITCH_REST_DEG), HOME_INSERTION])
     for k, other in enumerate(("roll", "pitch")):
         if other in log.position and other != joint:
             pose[k] = np.radians(np.mean(log.position[other]))
@@ -235,7 +236,7 @@ def fit_friction(search: Search, plants: list[AxisPlant], logs: list[AxisLog], s
     if not logs:
         raise RcmKinError("identification needs at least one step log")
     objective = lambda x: float(np.sum(residuals(search.friction(x), plants, logs) ** 2))  # noqa: E731
-    violation = _violation(search, speed_bounds)
+    violation = bound_violation(search, speed_bounds)
     constraints = NonlinearConstraint(violation, -np.inf, 0.0) if speed_bounds else ()
     evolved = differential_evolution(objective, search.bounds(), seed=seed, maxiter=generations, popsize=8,
                                      tol=1e-6, polish=False, constraints=constraints,
@@ -271,7 +272,7 @@ def polish(search: Search, residual, x0: np.ndarray, cost0: float, violation=Non
     return x if float(np.sum(residual(x) ** 2)) <= cost0 else x0
 
 
-def _violation(search: Search, speed_bounds):
+def bound_violation(search: Search, speed_bounds):
     """Per bound, ``value / limit - 1`` of the parameters ``x`` (search coordinates): <= 0 satisfied."""
     for b in speed_bounds:
         if b.max_force <= 0.0:
@@ -362,8 +363,8 @@ def predicted_standard_errors(friction: AxisFriction, plants: list[AxisPlant], l
 
 
 def terms_of(friction: AxisFriction) -> tuple[str, ...]:
-    """The terms a parameter set has on: static friction above the sliding level, a presliding
-    spring, a compliant cable."""
-    on = {"stiction": friction.static > friction.coulomb, "presliding": friction.presliding_stiffness > 0,
-          "two_mass": friction.cable_stiffness > 0}
+    """The terms a parameter set has on: viscous friction, static friction above the sliding level,
+    a presliding spring, a compliant cable."""
+    on = {"viscous": friction.viscous > 0, "stiction": friction.static > friction.coulomb,
+          "presliding": friction.presliding_stiffness > 0, "two_mass": friction.cable_stiffness > 0}
     return tuple(t for t in TERMS if on[t])
