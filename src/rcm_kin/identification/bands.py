@@ -37,6 +37,7 @@ from rcm_kin.identification.drive_train import AxisLog, LogCheck, fit_percent, p
 from rcm_kin.identification.identify import file_record, predict_record
 from rcm_kin.identification.telemetry import step_index
 from rcm_kin.plotting import prediction_figure
+from rcm_kin.statics.holding_band import check_level
 
 LEVEL = 0.9          # default band level
 PRELOADS = 9         # presliding preloads, evenly over [-1, 1]
@@ -106,14 +107,6 @@ def simulate_members(members, plant: AxisPlant, log: AxisLog, workers: int | Non
         if rows:
             out[k::workers] = rows
     return out
-
-
-def check_level(level: float) -> float:
-    """``level`` as a band level: a number strictly between 0 and 1."""
-    if not (isinstance(level, (int, float, np.floating)) and 0.0 < float(level) < 1.0):
-        raise RcmKinError(f"the band level must be strictly between 0 and 1 (e.g. 0.9), got {level!r}",
-                          parameter="level")
-    return float(level)
 
 
 def scored_from(log: AxisLog) -> int:

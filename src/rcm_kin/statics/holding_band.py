@@ -38,14 +38,17 @@ DEFAULT_LEVEL = 0.9
 
 
 def check_level(level) -> float:
-    """A band's level: a number strictly between 0 and 1, or a one-line error."""
+    """A band's level: a number strictly between 0 and 1, or a one-line error (the one rule of every
+    band: holding efforts here, predictions in :mod:`rcm_kin.identification.bands`)."""
     try:
         value = float(level)
     except (TypeError, ValueError):
-        raise RcmKinError(f"the band level must be a number in (0, 1), got {str(level)[:40]!r}",
+        raise RcmKinError("the band level must be a number strictly between 0 and 1 (e.g. 0.9), got "
+                          f"{str(level)[:40]!r}",
                           parameter="level") from None
     if not 0.0 < value < 1.0:
-        raise RcmKinError(f"the band level must be in (0, 1) (e.g. 0.9), got {value:g}", parameter="level")
+        raise RcmKinError(f"the band level must be strictly between 0 and 1 (e.g. 0.9), got {value:g}",
+                          parameter="level")
     return value
 
 
