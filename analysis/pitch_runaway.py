@@ -17,6 +17,9 @@ counts start where the arm was powered on) and the peak comes 55 deg after it. T
 ``(b_emf + b) v_peak <= |k_u u|``: an upper bound on the viscous friction ``b`` beyond the
 motor's back-EMF. ``k_u`` carries the calibrated volts per PWM, whose +-15 % uncertainty the
 bound shares.
+
+The computation is the library's (:func:`rcm_kin.identification.speed_bounds.damping_bound`), where
+``rcm-kin identify --joint pitch`` takes it as a constraint when the ramp log is among its logs.
 """
 
 from __future__ import annotations
@@ -26,35 +29,14 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
-
-from rcm_kin.dynamics.drive import DRIVEN, load_drive_parameters  # noqa: E402
-from rcm_kin.dynamics.state_space import drive_constants  # noqa: E402
-from rcm_kin.hardware import ENCODER_COUNT  # noqa: E402
-from rcm_kin.identification.telemetry import load_telemetry  # noqa: E402
-
-
-def damping_bound(path) -> dict:
-    """Speed peak (deg/s), PWM there (counts) and the bound on the viscous friction (N m s/rad)."""
-    log, i = load_telemetry(path), DRIVEN.index("pitch")
-    angle = -log.position["pitch"] * ENCODER_COUNT[i]                   # counts -> deg
-    t, u = log.time, log.pwm["pitch"]
-    speed = np.gradient(angle, t)                                       # central differences
-    k = int(np.argmax(speed))
-    params = load_drive_parameters()
-    drive = drive_constants(params)
-    emf = drive.damping[i] - params["pitch"].viscous
-    v_peak = np.radians(speed[k])
-    bound = abs(drive.input_gain[i] * u[k]) / v_peak - emf
-    return {"time_s": float(t[k]), "speed_deg_s": float(speed[k]), "pwm": float(u[k]),
-            "back_emf": float(emf), "viscous_bound": float(bound),
-            "travel_deg": float(np.ptp(angle))}
+from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
+from rcm_kin.identification.speed_bounds import damping_bound  # noqa: E402
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("log", help="pitch_speed_ramp_down_response.csv")
-    b = damping_bound(parser.parse_args().log)
+    b = damping_bound(parser.parse_args().log, load_drive_parameters())
     print(f"speed peak {b['speed_deg_s']:.0f} deg/s at t = {b['time_s']:.2f} s under {b['pwm']:.0f} PWM "
           f"(travel {b['travel_deg']:.1f} deg)")
     print(f"back-EMF damping {b['back_emf']:.3f} N m s/rad; viscous friction beyond it <= "

@@ -23,6 +23,9 @@ ENCODER_COUNT = np.array([0.009, 0.0135, 0.030e-3])   # deg, deg, m per count
 
 # --- the working pose ---
 HOME_INSERTION = 0.080                           # m: insertion of the thesis experiments and holds
+PITCH_REST_DEG = -35.0675                        # deg: the pitch resting on its lower stop, as the single-axis roll
+                                                 # experiments rest it (psm-sysid/single-axis/roll_step.csv logs
+                                                 # -35.0675 throughout; data README: "pitch resting on its lower stop")
 
 # --- osMDV counterweight design (brass), as built ---
 MAIN_COUNTERWEIGHT = (2.63, 0.20028)             # kg, m below the main (roll) axis on the roll body

@@ -103,7 +103,8 @@ def test_identification_recovers_a_stick_slip_axis_from_noisy_steps():
     truth = AxisFriction(extra_inertia=0.4, viscous=6.0, coulomb=0.3, presliding_stiffness=20.0,
                          presliding_slope=2.0, presliding_force=1.5)
     plant, logs = synthetic_logs(truth)
-    found, sigma = fit_friction(search_for(("presliding",)), [plant] * len(logs), logs, seed=3, generations=60)
+    found, sigma = fit_friction(search_for(("viscous", "presliding")), [plant] * len(logs), logs, seed=3,
+                                generations=60)
     for name, tolerance in (("viscous", 0.1), ("coulomb", 0.1), ("presliding_stiffness", 0.1),
                             ("presliding_slope", 0.1), ("extra_inertia", 0.2)):
         assert getattr(found, name) == pytest.approx(getattr(truth, name), rel=tolerance), name
@@ -121,11 +122,11 @@ def test_leave_one_out_predicts_each_log_from_the_others():
     truth = AxisFriction(extra_inertia=0.4, viscous=6.0, coulomb=0.3, presliding_stiffness=20.0,
                          presliding_slope=2.0, presliding_force=1.5)
     plant, logs = synthetic_logs(truth, count=3)
-    checks, folds = leave_one_out(search_for(("presliding",)), [plant] * 3, logs, generations=30)
+    checks, folds = leave_one_out(search_for(("viscous", "presliding")), [plant] * 3, logs, generations=30)
     assert len(folds) == 3 and all(c.fit_percent > 95.0 for c in checks)
     odd = AxisLog("inconsistent", "roll", logs[0].period, logs[0].pwm, logs[0].measured[0] + 2.0 * (
         logs[0].measured - logs[0].measured[0]), logs[0].pose)
-    checks, _ = leave_one_out(search_for(("presliding",)), [plant] * 3, [odd] + logs[1:], generations=30)
+    checks, _ = leave_one_out(search_for(("viscous", "presliding")), [plant] * 3, [odd] + logs[1:], generations=30)
     assert checks[0].fit_percent < 60.0
 
 
@@ -171,8 +172,8 @@ def test_a_progress_bar_does_not_stop_the_search():
                          presliding_slope=2.0, presliding_force=1.5)
     plant, logs = synthetic_logs(truth, count=2)
     calls = []
-    quiet, _ = fit_friction(search_for(("presliding",)), [plant] * 2, logs, seed=2, generations=8)
-    hooked, _ = fit_friction(search_for(("presliding",)), [plant] * 2, logs, seed=2, generations=8,
+    quiet, _ = fit_friction(search_for(("viscous", "presliding")), [plant] * 2, logs, seed=2, generations=8)
+    hooked, _ = fit_friction(search_for(("viscous", "presliding")), [plant] * 2, logs, seed=2, generations=8,
                              progress=lambda: calls.append(1) or True)
     assert hooked == quiet
     assert len(calls) >= 2

@@ -78,6 +78,11 @@ def _identify_lines(result) -> list[str]:
             lines.append("  leave-one-log-out: fit %, final travel measured / error (deg), stick time s")
             lines += [f"  {c.name:44} {c.fit_percent:7.1f}  {c.travel_deg:+.2f} / {c.final_error_deg:+.2f}  "
                       f"{c.stick_time:.2f} (model {c.predicted_stick_time:.2f})" for c in r.cross_validation]
+        for b in r.bounds:
+            value = b.value(r.friction)
+            lines.append(f"  constraint {b.name}: friction at {np.degrees(b.speed):.0f} deg/s {value:.3g} <= "
+                         f"{b.max_force:.3g} N m" + (" (active)" if b.active(r.friction) else "") + f"  [{b.source}]")
+    lines += [f"note {e.path.name} ({e.joint}): {e.note}" for e in result.notes]
     lines += [f"skipped {e.path.name} ({e.joint}): {e.reason}" for e in result.skipped]
     return lines
 

@@ -57,7 +57,7 @@ from rcm_kin.firmware_rules import quantise, saturate
 if TYPE_CHECKING:
     from rcm_kin.dynamics.state_space import DrivenDynamics
 
-TERMS = ("stiction", "presliding", "two_mass")
+TERMS = ("viscous", "stiction", "presliding", "two_mass")
 SUBSTEP = 2.5e-4   # s: integration step
 COUPLING_SWEEPS = 4   # block Gauss-Seidel sweeps of the motor-cable-link step: each contracts the coupling
                       # error by h^2 k_c / (J_m + h^2 k_c) x h^2 k_c / M (< 0.03 up to k_c = 1e6 N m/rad)
@@ -66,6 +66,7 @@ COUPLING_SWEEPS = 4   # block Gauss-Seidel sweeps of the motor-cable-link step: 
 STATE_SIZE = 4 + MAX_ELEMENTS   # one axis's state [theta, w, q, v, z_1 .. z_MAX_ELEMENTS]; unused anchors ignored
 NAMES = tuple(f.name for f in fields(AxisFriction))
 TERM_PARAMETERS = {   # what switching a term off zeroes
+    "viscous": ("viscous",),            # off: sliding friction flat in speed (Coulomb level)
     "stiction": ("static", "stribeck_velocity"),
     "presliding": ("presliding_stiffness", "presliding_slope", "presliding_force"),
     "two_mass": ("cable_stiffness", "cable_damping", "motor_coulomb", "motor_viscous"),

@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from scipy.optimize import differential_evolution, least_squares
+from scipy.optimize import NonlinearConstraint, differential_evolution, least_squares
 
 from rcm_kin.dynamics.axis_friction import DISCRETE
 from rcm_kin.dynamics.stick_slip import (
@@ -36,7 +36,8 @@ from rcm_kin.dynamics.stick_slip import (
     simulate_axis_closed,
 )
 from rcm_kin.errors import RcmKinError
-from rcm_kin.hardware import ENCODER_COUNT, HOME_INSERTION, PWM_LIMIT
+from rcm_kin.hardware import ENCODER_COUNT, HOME_INSERTION, PITCH_REST_DEG, PWM_LIMIT
+from rcm_kin.identification.log_checks import LogCheck, check_log, fit_percent, stick_time  # noqa: F401 (re-exported)
 from rcm_kin.identification.recorded_law import RecordedLaw, recover_law
 from rcm_kin.identification.records import resample, tick_period
 from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry, step_index
@@ -51,7 +52,8 @@ BOUNDS = {
     "cable_stiffness": (5.0, 1e4, "log"), "cable_damping": (0.0, 30.0), "motor_coulomb": (0.0, 1.0),
     "motor_viscous": (0.0, 10.0),
 }
-DEFAULT_TERMS = ("presliding",)
+DEFAULT_TERMS = ("viscous", "presliding")
+PENALTY = 100.0        # weight of a bound's relative excess beside the residuals (each log's about 1)
 
 
 @dataclass(frozen=True)
@@ -84,14 +86,15 @@ def whole_log(source: str | Path | TelemetryLog, joint: str, period: float | Non
     samples themselves as controller ticks at their mean interval (a closed-loop log: the firmware
     acted once per logged sample; its time stamps are whole milliseconds, so intervals read 2 or
     3 ms around a 2.4 ms loop). From its first sample (taken at rest); the other axis held at its
-    mean logged angle (0 when not logged)."""
+    mean logged angle (when not logged: the roll at 0, the pitch resting on its lower stop,
+    :data:`~rcm_kin.hardware.PITCH_REST_DEG`: see :mod:`rcm_kin.identification.log_catalog`)."""
     log = source if isinstance(source, TelemetryLog) else load_telemetry(source)
     if period is None:
         log.require(joint)
         u, y, period = log.pwm[joint], log.position[joint], tick_period(log)
     else:
         u, y, period = resample(log, joint, period)
-    pose = np.array([0.0, 0.0, HOME_INSERTION])
+    pose = np.array([0.0, np.radians(PITCH_REST_DEG), HOME_INSERTION])
     for k, other in enumerate(("roll", "pitch")):
         if other in log.position and other != joint:
             pose[k] = np.radians(np.mean(log.position[other]))
@@ -182,12 +185,6 @@ def at_rest(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float,
     return plant, rest_state(friction, plant, angle, pwm, preload)
 
 
-def fit_percent(measured: np.ndarray, predicted: np.ndarray) -> float:
-    """NRMSE fit in percent (MATLAB's ``compare``): 100 (1 - |y - yhat| / |y - mean y|)."""
-    spread = np.linalg.norm(measured - measured.mean())
-    return float(100.0 * (1.0 - np.linalg.norm(measured - predicted) / spread)) if spread > 0 else float("nan")
-
-
 def _logged(name: str) -> bool:
     """Whether the parameter ``name`` is searched on a log scale."""
     return len(BOUNDS[name]) == 3
@@ -236,20 +233,57 @@ def residuals(friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLo
 
 
 def fit_friction(search: Search, plants: list[AxisPlant], logs: list[AxisLog], seed: int = 0,
-                 generations: int = 100, progress=None) -> tuple[AxisFriction, np.ndarray]:
-    """Shared parameters over ``logs``: evolution then least squares. Returns the estimate and the
-    standard errors of the free parameters (in their own units, NaN where unidentifiable)."""
+                 generations: int = 100, progress=None, speed_bounds=()) -> tuple[AxisFriction, np.ndarray]:
+    """Shared parameters over ``logs``: evolution then least squares, subject to ``speed_bounds``
+    (:class:`~rcm_kin.identification.speed_bounds.SpeedBound`: the friction at each bound's speed
+    at most its limit). Returns the estimate and the standard errors of the free parameters (in
+    their own units, NaN where unidentifiable)."""
     if not logs:
         raise RcmKinError("identification needs at least one step log")
     objective = lambda x: float(np.sum(residuals(search.friction(x), plants, logs) ** 2))  # noqa: E731
+    violation = bound_violation(search, speed_bounds)
+    constraints = NonlinearConstraint(violation, -np.inf, 0.0) if speed_bounds else ()
     evolved = differential_evolution(objective, search.bounds(), seed=seed, maxiter=generations, popsize=8,
-                                     tol=1e-6, polish=False,
+                                     tol=1e-6, polish=False, constraints=constraints,
                                      callback=_generation_callback(progress) if progress else None)
-    lo, hi = np.array(search.bounds()).T
     residual = lambda x: residuals(search.friction(x), plants, logs)  # noqa: E731
-    polished = least_squares(residual, evolved.x, bounds=(lo, hi), diff_step=1e-4, max_nfev=60)
-    best = polished.x if polished.cost * 2 <= evolved.fun else evolved.x
+    best = polish(search, residual, evolved.x, evolved.fun, violation)
     return search.friction(best), _standard_errors(search, residual, best)
+
+
+def polish(search: Search, residual, x0: np.ndarray, cost0: float, violation=None, max_nfev: int = 60) -> np.ndarray:
+    """``least_squares`` on ``residual`` from ``x0`` (sum of squares ``cost0``), kept only if better.
+    With ``violation`` (relative excess over each bound, <= 0 where satisfied) the bounds enter as
+    a penalty residual, and the polished point is pulled back along the segment from ``x0``
+    (feasible) to the last feasible point, so the result satisfies every bound: a polish that
+    ends on a bound's far side lands on the bound."""
+    lo, hi = np.array(search.bounds()).T
+    if violation is None or np.size(violation(x0)) == 0:
+        polished = least_squares(residual, x0, bounds=(lo, hi), diff_step=1e-4, max_nfev=max_nfev)
+        return polished.x if polished.cost * 2 <= cost0 else x0
+    penalised = lambda x: np.r_[residual(x), PENALTY * np.maximum(violation(x), 0.0)]  # noqa: E731
+    x = least_squares(penalised, x0, bounds=(lo, hi), diff_step=1e-4, max_nfev=max_nfev).x
+    if np.max(violation(x)) > 0.0 and np.max(violation(x0)) <= 0.0:
+        inside, outside = 0.0, 1.0
+        for _ in range(40):               # bisection on the segment: feasible at ``inside``
+            middle = 0.5 * (inside + outside)
+            inside, outside = (middle, outside) if np.max(violation(x0 + middle * (x - x0))) <= 0 else (inside, middle)
+        x = x0 + inside * (x - x0)
+    excess, excess0 = np.max(violation(x)), np.max(violation(x0))
+    if (excess <= 0.0) != (excess0 <= 0.0):          # the feasible one, else the better one
+        return x if excess <= 0.0 else x0
+    if excess > 0.0:
+        return x if excess < excess0 else x0
+    return x if float(np.sum(residual(x) ** 2)) <= cost0 else x0
+
+
+def bound_violation(search: Search, speed_bounds):
+    """Per bound, ``value / limit - 1`` of the parameters ``x`` (search coordinates): <= 0 satisfied."""
+    for b in speed_bounds:
+        if b.max_force <= 0.0:
+            raise RcmKinError(f"the {b.name} bound leaves no room for friction ({b.max_force:.3g} N m at "
+                              f"{b.speed:.3g} rad/s: {b.source})")
+    return lambda x: np.array([b.value(search.friction(x)) / b.max_force - 1.0 for b in speed_bounds])
 
 
 def _generation_callback(progress):
@@ -294,39 +328,8 @@ def _standard_errors(search: Search, residual, x) -> np.ndarray:
     return _sigma(search, x, J.T @ J, (r @ r) / max(r.size - x.size, 1))
 
 
-@dataclass(frozen=True)
-class LogCheck:
-    """How a model predicts one log (angles in degrees, times in s)."""
-
-    name: str
-    fit_percent: float         # NRMSE fit of the measured angle
-    travel_deg: float          # measured final travel from the start
-    final_error_deg: float     # predicted minus measured final angle
-    stick_time: float          # s after the start when the measured angle stops for good
-    predicted_stick_time: float
-
-    @property
-    def travel_error(self) -> float:
-        """Final-travel error as a fraction of the measured travel."""
-        return abs(self.final_error_deg) / abs(self.travel_deg) if self.travel_deg else float("inf")
-
-
-def stick_time(angle: np.ndarray, period: float, tolerance: float = np.radians(0.02)) -> float:
-    """Time after which ``angle`` (rad) stays within ``tolerance`` of its final value."""
-    moving = np.flatnonzero(np.abs(angle - angle[-1]) > tolerance)
-    return float((moving[-1] + 1) * period) if moving.size else 0.0
-
-
-def check_log(name: str, measured: np.ndarray, predicted: np.ndarray, period: float) -> LogCheck:
-    """Fit, final travel and stick time of ``predicted`` against ``measured`` (rad, same grid)."""
-    travel = np.degrees(measured[-1] - measured[0])
-    return LogCheck(name, fit_percent(measured, predicted), float(travel),
-                    float(np.degrees(predicted[-1] - measured[-1])), stick_time(measured, period),
-                    stick_time(predicted, period))
-
-
 def leave_one_out(search: Search, plants: list[AxisPlant], logs: list[AxisLog], seed: int = 0,
-                  generations: int = 100, progress=None) -> tuple[list[LogCheck], list[AxisFriction]]:
+                  generations: int = 100, progress=None, speed_bounds=()) -> tuple[list[LogCheck], list[AxisFriction]]:
     """Each log predicted by the model fitted on all the others, each fold searched from scratch
     (nothing fitted on the left-out log seeds it); the checks, and the parameters of each fold.
     ``progress()``: once per generation."""
@@ -334,7 +337,7 @@ def leave_one_out(search: Search, plants: list[AxisPlant], logs: list[AxisLog], 
     for k, log in enumerate(logs):
         rest = [i for i in range(len(logs)) if i != k]
         friction, _ = fit_friction(search, [plants[i] for i in rest], [logs[i] for i in rest], seed=seed,
-                                   generations=generations, progress=progress)
+                                   generations=generations, progress=progress, speed_bounds=speed_bounds)
         checks.append(check_log(log.name, log.measured, predict_log(friction, plants[k], log), log.period))
         folds.append(friction)
     return checks, folds
@@ -365,8 +368,8 @@ def predicted_standard_errors(friction: AxisFriction, plants: list[AxisPlant], l
 
 
 def terms_of(friction: AxisFriction) -> tuple[str, ...]:
-    """The terms a parameter set has on: static friction above the sliding level, a presliding
-    spring, a compliant cable."""
-    on = {"stiction": friction.static > friction.coulomb, "presliding": friction.presliding_stiffness > 0,
-          "two_mass": friction.cable_stiffness > 0}
+    """The terms a parameter set has on: viscous friction, static friction above the sliding level,
+    a presliding spring, a compliant cable."""
+    on = {"viscous": friction.viscous > 0, "stiction": friction.static > friction.coulomb,
+          "presliding": friction.presliding_stiffness > 0, "two_mass": friction.cable_stiffness > 0}
     return tuple(t for t in TERMS if on[t])

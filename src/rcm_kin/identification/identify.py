@@ -11,16 +11,18 @@ the gain schedule use, taken from the identified ones.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, load_drive_parameters, with_joint
+from rcm_kin.dynamics.drive_uncertainty import DriveUncertainty, FoldSet
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
 from rcm_kin.dynamics.stick_slip import AxisFriction, AxisPlant, axis_plant
 from rcm_kin.errors import RcmKinError
+from rcm_kin.identification.cross_validation import fit_with_cv, task_count, undetermined_ranges
 from rcm_kin.identification.drive_train import (
     DEFAULT_TERMS,
     AxisLog,
@@ -28,21 +30,21 @@ from rcm_kin.identification.drive_train import (
     axis_log,
     check_log,
     closed_loop_log,
-    fit_friction,
     jackknife_errors,
-    leave_one_out,
     predict_log,
     search_for,
     whole_log,
 )
 from rcm_kin.identification.log_catalog import CatalogEntry, catalog, classify
+from rcm_kin.identification.speed_bounds import SpeedBound, speed_bounds
 from rcm_kin.identification.telemetry import load_telemetry
 from rcm_kin.model import load_robot
 
 CLOSED_LOOP_START = 5.0        # s: a closed-loop record starts at the first rest after this
 CLOSED_LOOP_SPAN = 10.0        # s of each closed-loop log used
 GENERATIONS = (100, 100)        # evolutionary search: the fit on all logs, each cross-validation fold
-TERMS = {"roll": ("presliding",), "pitch": ("presliding", "stiction")}   # per joint: see the note in the README
+TERMS = {"roll": ("viscous", "presliding"),                 # per joint: see the note in the README
+         "pitch": ("viscous", "presliding", "stiction")}
 
 @dataclass(frozen=True)
 class JointIdentification:
@@ -53,6 +55,10 @@ class JointIdentification:
     logs: tuple[str, ...]                  # the logs fitted
     fits: tuple[LogCheck, ...]             # in-sample, per log
     cross_validation: tuple[LogCheck, ...]  # leave-one-log-out (empty without cv)
+    bounds: tuple[SpeedBound, ...] = ()    # the constraints the fit satisfied (speed_bounds)
+    folds: tuple[AxisFriction, ...] = ()   # per left-out log (aligned with cross_validation): its fold's fit
+    inner_folds: tuple[tuple[AxisFriction, ...], ...] = ()  # per left-out log k: fits on all but k and j, j != k
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)   # undetermined parameters' ranges (SI)
 
 
 @dataclass(frozen=True)
@@ -60,6 +66,7 @@ class Identification:
     joints: dict[str, JointIdentification]
     skipped: tuple[CatalogEntry, ...]
     params: DriveParameters                # the starting set with the identified drive trains
+    notes: tuple[CatalogEntry, ...] = ()   # records that assume something (CatalogEntry.note)
 
     def as_dict(self) -> dict:
         def check(c: LogCheck) -> dict:
@@ -74,7 +81,12 @@ class Identification:
                 "fits": {j: {c.name: check(c) for c in r.fits} for j, r in self.joints.items()},
                 "cross_validation": {j: {c.name: check(c) for c in r.cross_validation}
                                      for j, r in self.joints.items()},
-                "skipped": {f"{e.path.name} ({e.joint})": e.reason for e in self.skipped}}
+                "skipped": {f"{e.path.name} ({e.joint})": e.reason for e in self.skipped},
+                "notes": {f"{e.path.name} ({e.joint})": e.note for e in self.notes},
+                "folds": {j: [{"left_out": c.name, **f.as_dict()} for c, f in zip(r.cross_validation, r.folds)]
+                          for j, r in self.joints.items()},
+                "ranges": {j: {n: list(v) for n, v in r.ranges.items()} for j, r in self.joints.items()},
+                "constraints": {j: {b.name: b.as_dict(r.friction) for b in r.bounds} for j, r in self.joints.items()}}
 
 
 def _finite(errors: dict[str, float]) -> dict[str, float]:
@@ -100,20 +112,22 @@ def joint_records(entries: list[CatalogEntry], model: DrivenDynamics,
 
 
 def identify_joint(joint: str, logs: list[AxisLog], plants: list[AxisPlant], cv: bool, terms=None,
-                   seed: int = 0, progress=None) -> JointIdentification:
-    """Fit ``joint``'s drive train on ``logs`` (and cross-validate, leaving one log out);
-    ``progress()`` is called once per generation of every search."""
+                   seed: int = 0, progress=None, bounds=(), workers: int | None = None) -> JointIdentification:
+    """Fit ``joint``'s drive train on ``logs`` subject to ``bounds`` (:mod:`speed_bounds`; with ``cv``
+    cross-validated, leaving one log out, with the inner folds), the fits on ``workers`` processes
+    (:func:`fit_with_cv`); ``progress()`` is called once per finished fit."""
     search = search_for(TERMS.get(joint, DEFAULT_TERMS) if terms is None else terms)
-    friction, sigma = fit_friction(search, plants, logs, seed=seed, generations=GENERATIONS[0], progress=progress)
+    result = fit_with_cv(search, plants, logs, seed, GENERATIONS, bounds, cv=cv, inner=cv, workers=workers,
+                         progress=progress)
+    friction, sigma = result.friction, result.standard_errors
     fits = tuple(check_log(log.name, log.measured, predict_log(friction, p, log), log.period)
                  for log, p in zip(logs, plants))
-    checks, folds = [], []
-    if cv:
-        checks, folds = leave_one_out(search, plants, logs, seed=seed, generations=GENERATIONS[1],
-                                      progress=progress)
-    return JointIdentification(joint, friction, dict(zip(search.free, map(float, sigma))),
-                               jackknife_errors(folds, search.free) if folds else {},
-                               tuple(log.name for log in logs), fits, tuple(checks))
+    errors = dict(zip(search.free, map(float, sigma)))
+    ranges = undetermined_ranges(friction, plants, logs, [n for n, v in errors.items() if not np.isfinite(v)])
+    return JointIdentification(joint, friction, errors,
+                               jackknife_errors(result.folds, search.free) if result.folds else {},
+                               tuple(log.name for log in logs), fits, result.checks, tuple(bounds), result.folds,
+                               result.inner, ranges)
 
 
 def identify(paths, params: DriveParameters | None = None, joints=("roll",), cv: bool = False,
@@ -131,14 +145,41 @@ def identify(paths, params: DriveParameters | None = None, joints=("roll",), cv:
             raise RcmKinError(f"no log can identify the {joint}: {reasons or 'none given'}")
         if cv and len(records[joint][0]) < 2:
             raise RcmKinError(f"cross-validation of the {joint} needs at least 2 logs, got {records[joint][0][0].name}")
-    total = sum(GENERATIONS[0] + (len(logs) * GENERATIONS[1] if cv else 0) for logs, _ in records.values())
+    total = sum(task_count(len(logs), cv, cv) for logs, _ in records.values())
     results = {}
-    with tqdm(total=total, desc="identify", unit="generation", disable=not progress) as bar:
+    with tqdm(total=total, desc="identify", unit="fit", disable=not progress) as bar:
         for joint, (logs, plants) in records.items():
             bar.set_postfix_str(f"{joint}: {len(logs)} logs")
-            results[joint] = identify_joint(joint, logs, plants, cv, seed=seed, progress=lambda: bar.update())
+            bounds = speed_bounds(model, params, joint, _ramp_candidates(entries) if joint == "pitch" else ())
+            results[joint] = identify_joint(joint, logs, plants, cv, seed=seed, progress=lambda: bar.update(),
+                                            bounds=bounds)
     skipped = tuple(e for e in entries if e.kind == "skipped")
-    return Identification(results, skipped, with_drive_trains(params, {j: r.friction for j, r in results.items()}))
+    notes = tuple(e for e in entries if e.note and e.joint in results)
+    params = with_drive_trains(params, {j: r.friction for j, r in results.items()})
+    return Identification(results, skipped, replace(params, uncertainty=with_uncertainty(params.uncertainty, results)),
+                          notes)
+
+
+def with_uncertainty(uncertainty: DriveUncertainty, results: dict[str, JointIdentification]) -> DriveUncertainty:
+    """``uncertainty`` (its hull and holding residuals kept) with each identified joint's fold sets
+    (when cross-validated) and its undetermined parameters' ranges in place of any it had."""
+    folds = {**uncertainty.folds, **{j: tuple(FoldSet(c.name, f) for c, f in zip(r.cross_validation, r.folds))
+                                     for j, r in results.items() if r.folds}}
+    ranges = {**{j: v for j, v in uncertainty.ranges.items() if j not in results},
+              **{j: r.ranges for j, r in results.items() if r.ranges}}
+    return replace(uncertainty, folds=folds, ranges=ranges)
+
+
+def _ramp_candidates(entries: list[CatalogEntry]) -> list:
+    """The logs the pitch skipped that could be its PWM ramp (read again; unreadable ones left out)."""
+    out = []
+    for e in entries:
+        if e.joint == "pitch" and e.kind == "skipped" and e.path.suffix == ".csv":
+            try:
+                out.append(load_telemetry(e.path))
+            except RcmKinError:
+                continue
+    return out
 
 
 def with_drive_trains(params: DriveParameters, frictions: dict[str, AxisFriction]) -> DriveParameters:

@@ -15,8 +15,13 @@ stores raw encoder counts), the other axis missing from a step log (its gravity 
 guess), or outside the joint range (resting on its mechanical stop, a contact the model does
 not have), closed-loop logs in which the joint only holds still, and closed-loop logs whose
 controller is not a linear law plus a binary excitation (it cannot be put in the loop). A log without the roll
-takes it at 0, as the single-axis experiments were run (data README: "at roll about 0"); a log
-without the pitch is skipped for lack of its pose.
+takes it at 0, as the single-axis experiments were run (data README: "at roll about 0").
+
+The roll's dynamics do not care whether the pitch is held by its controller or by its stop: a
+roll log with the pitch resting on its stop (outside the model's range) is a roll record all the
+same, the pitch held where it rests; a roll log without the pitch takes it at its resting value,
+:data:`rcm_kin.hardware.PITCH_REST_DEG` (on its lower stop: the single-axis roll experiments
+rest it there, as ``roll_step.csv`` shows). Either assumption is the entry's ``note``.
 """
 
 from __future__ import annotations
@@ -28,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from rcm_kin.errors import RcmKinError, WorkLimitError
-from rcm_kin.hardware import PWM_LIMIT
+from rcm_kin.hardware import PITCH_REST_DEG, PWM_LIMIT
 from rcm_kin.identification.recorded_law import recover_law
 from rcm_kin.identification.rosbag import BAG_SUFFIXES
 from rcm_kin.identification.telemetry import TelemetryLog, is_bag, load_telemetry, telemetry_files
@@ -45,6 +50,7 @@ class CatalogEntry:
     joint: str
     kind: str             # "step", "closed-loop" or "skipped"
     reason: str = ""      # why it was skipped
+    note: str = ""        # an assumption the record makes (the pitch's pose)
 
 
 def classify(log: TelemetryLog, joint: str) -> tuple[str, str]:
@@ -59,12 +65,10 @@ def classify(log: TelemetryLog, joint: str) -> tuple[str, str]:
     other = "pitch" if joint == "roll" else "roll"
     changes = np.flatnonzero(np.abs(np.diff(u)) > 0.1)
     step = changes.size == 1 and min(log.time[changes[0]], log.time[-1] - log.time[changes[0] + 1]) >= HOLD
-    if other in log.position:
+    if other in log.position and other == "roll":
         held = float(np.mean(log.position[other]))
         if abs(held) > LIMIT:
             return "skipped", f"the {other} is at {held:.1f} deg, outside the model's range (on its stop)"
-    elif other == "pitch":
-        return "skipped", f"the pitch angle is not logged: its gravity along the {joint} would be a guess"
     if not step and np.ptp(angle) < MIN_MOTION:
         return "skipped", f"the {joint} only holds still ({np.ptp(angle):.2f} deg of motion)"
     if not step:
@@ -72,6 +76,20 @@ def classify(log: TelemetryLog, joint: str) -> tuple[str, str]:
         if problem:
             return "skipped", problem
     return ("step" if step else "closed-loop"), ""
+
+
+def pose_note(log: TelemetryLog, joint: str) -> str:
+    """The assumption a record of ``joint`` from ``log`` makes about the pitch's pose ("" for none)."""
+    if joint != "roll":
+        return ""
+    if "pitch" not in log.position:
+        return (f"the pitch is not logged: taken at its resting value {PITCH_REST_DEG:.1f} deg (on its lower stop, "
+                "where the single-axis roll experiments rest it, as roll_step.csv shows)")
+    held = float(np.mean(log.position["pitch"]))
+    if abs(held) > LIMIT:
+        return (f"the pitch rests at {held:.1f} deg (on its stop, outside the controlled range): held there, "
+                "as the roll's dynamics see it")
+    return ""
 
 
 MAX_LOGS = 1000       # CSV files one search may find
@@ -112,5 +130,6 @@ def catalog(paths, joints=("roll", "pitch")) -> list[CatalogEntry]:
             out += [CatalogEntry(file, joint, "skipped", reason) for joint in joints]
             continue
         for joint in joints:
-            out.append(CatalogEntry(file, joint, *classify(log, joint)))
+            kind, reason = classify(log, joint)
+            out.append(CatalogEntry(file, joint, kind, reason, pose_note(log, joint) if kind != "skipped" else ""))
     return out

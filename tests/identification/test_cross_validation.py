@@ -1,0 +1,59 @@
+"""The fit with its folds on a process pool, the inner folds and the undetermined ranges."""
+
+from dataclasses import replace
+
+import numpy as np
+
+from rcm_kin.dynamics.axis_friction import AxisFriction
+from rcm_kin.dynamics.stick_slip import AxisPlant
+from rcm_kin.identification.cross_validation import fit_with_cv, undetermined_ranges
+from rcm_kin.identification.drive_train import AxisLog, leave_one_out, predict_log, search_for
+
+GAIN, MASS = 0.1, 0.5     # N m per count, kg m^2
+
+TRUTH = AxisFriction(extra_inertia=0.4, viscous=6.0, coulomb=0.3, presliding_stiffness=20.0, presliding_slope=2.0,
+                     presliding_force=1.5)
+
+
+def _steps(truth: AxisFriction) -> tuple[AxisPlant, list[AxisLog]]:
+    """Three noiseless steps of a presliding-spring axis with viscous friction on a sine gravity."""
+    grid = np.linspace(-1.0, 1.0, 201)
+    plant = AxisPlant(GAIN, 0.6, 3e-3, grid, 3.0 * np.sin(grid), np.full(grid.size, MASS))
+    logs = []
+    for k, start in enumerate((-0.2, 0.0, 0.2)):
+        hold = 3.0 * np.sin(start) / GAIN
+        pwm = np.r_[hold, np.full(1500, hold + 8.0 + 3.0 * k)]
+        blank = AxisLog(f"step {k}", "roll", 1e-3, pwm, np.full(pwm.size, start), np.array([start, 0, 0.08]))
+        logs.append(AxisLog(blank.name, "roll", 1e-3, pwm, predict_log(truth, plant, blank), blank.pose))
+    return plant, logs
+
+
+def test_two_processes_give_the_serial_results_and_no_fold_sees_its_log():
+    """On two processes the fit, folds and inner folds are those of one process (same seeds), the
+    folds those of the serial leave_one_out; changing log 0's data leaves fold 0 and its inner
+    folds exactly as they were (nothing of log 0 enters them) while the fit on all logs moves."""
+    plant, logs = _steps(TRUTH)
+    search = search_for(("viscous", "presliding"))
+    serial = fit_with_cv(search, [plant] * 3, logs, 0, (8, 8), cv=True, inner=True, workers=1)
+    pooled = fit_with_cv(search, [plant] * 3, logs, 0, (8, 8), cv=True, inner=True, workers=2)
+    assert pooled.friction == serial.friction and pooled.folds == serial.folds and pooled.inner == serial.inner
+    assert np.array_equal(pooled.standard_errors, serial.standard_errors, equal_nan=True)
+    assert tuple(leave_one_out(search, [plant] * 3, logs, generations=8)[1]) == serial.folds
+    assert [len(i) for i in serial.inner] == [2, 2, 2]
+    odd = replace(logs[0], measured=logs[0].measured[0] + 2.0 * (logs[0].measured - logs[0].measured[0]))
+    changed = fit_with_cv(search, [plant] * 3, [odd] + logs[1:], 0, (8, 8), cv=True, inner=True, workers=1)
+    assert changed.folds[0] == serial.folds[0] and changed.inner[0] == serial.inner[0]
+    assert changed.friction != serial.friction
+
+
+def test_an_undetermined_parameter_spans_its_range_and_a_determined_one_does_not():
+    """A slip force above anything the steps load the spring with leaves the cost flat up to the
+    bound (5 N m): its range reaches it; the viscous friction, which every step feels, keeps a
+    narrow range around the truth."""
+    truth = replace(TRUTH, presliding_force=4.0)
+    plant, logs = _steps(truth)
+    ranges = undetermined_ranges(truth, [plant] * 3, logs, ["presliding_force", "viscous"])
+    lo, hi = ranges["presliding_force"]
+    assert hi == 5.0 and lo <= 4.0
+    lo, hi = ranges["viscous"]
+    assert lo <= 6.0 <= hi and hi - lo < 6.0
