@@ -47,8 +47,8 @@ def test_two_processes_give_the_serial_results_and_no_fold_sees_its_log():
 
 
 def test_an_undetermined_parameter_spans_its_range_and_a_determined_one_does_not():
-    """A slip force above anything the steps load the spring with leaves the cost flat up to the
-    bound (5 N m): its range reaches it; the viscous friction, which every step feels, keeps a
+    """A slip force above anything the steps load the spring with leaves the cost flat up to
+    the bound (5 N m): its range reaches it; the viscous friction, which every step feels, keeps a
     narrow range around the truth."""
     truth = replace(TRUTH, presliding_force=4.0)
     plant, logs = _steps(truth)

@@ -43,12 +43,24 @@ def test_predict_contract(shared_data, capsys, tmp_path):
     assert (tmp_path / "p.png").stat().st_size > 10_000
 
 
+def test_a_roll_log_with_the_pitch_on_its_stop_is_predicted(shared_data, capsys):
+    """roll_step.csv (the pitch resting on its lower stop) and step_response.csv (no pitch column,
+    the pitch taken at its resting value) are predicted: finite fits, one per logged sample."""
+    single = shared_data / "psm-sysid" / "single-axis"
+    for name in ("roll_step.csv", "step_response.csv"):
+        code, out, err = run(capsys, "predict", "psm", str(single / name), "--joint", "roll", "--json")
+        assert code == 0, err
+        result = json.loads(out)
+        assert np.isfinite(result["fit_percent"]) and len(result["predicted"]) == len(result["measured"])
+
+
 def test_predict_refuses_logs_the_model_cannot_speak_for(shared_data, capsys):
-    """A log in raw encoder counts, or with the other axis on its stop, is a one-line error, not
-    a number; --json output is strict JSON."""
+    """A log in raw encoder counts, or without the joint's columns, is a one-line error, not a
+    number; --json output is strict JSON. (A roll log with the pitch on its stop is a roll record:
+    test_a_roll_log_with_the_pitch_on_its_stop_is_predicted.)"""
     single = shared_data / "psm-sysid" / "single-axis"
     for name, joint, reason in (("pitch_speed_ramp_down_response.csv", "roll", "not in degrees"),
-                                ("roll_step.csv", "roll", "on its stop")):
+                                ("pitch_step_response.csv", "roll", "no roll columns")):
         code, out, err = run(capsys, "predict", "psm", str(single / name), "--joint", joint, "--json")
         assert code == 2 and out == "" and err.count("\n") == 1 and reason in err, err
 

@@ -77,3 +77,18 @@ def test_a_fit_that_violates_a_bound_is_pulled_onto_it():
     held, _ = fit_friction(search, [plant] * 3, logs, seed=3, generations=30, speed_bounds=(bound,))
     assert bound.value(held) <= bound.max_force * (1 + 1e-9)
     assert bound.active(held) and bound.as_dict(held)["active"]
+
+
+def test_identify_on_the_shared_logs_satisfies_the_roll_bound(shared_data, params, monkeypatch):
+    """A short identification on every shared roll log (5 generations) ends inside the roll's
+    P-sinusoid bound, reports it, and takes the two single-axis logs with their pose noted."""
+    from rcm_kin.identification import identify as module
+
+    monkeypatch.setattr(module, "GENERATIONS", (5, 5))
+    result = module.identify([shared_data / "psm-sysid"], params, ("roll",))
+    roll = result.joints["roll"]
+    bound, = roll.bounds
+    assert bound.value(roll.friction) <= bound.max_force * (1 + 1e-9)
+    assert result.as_dict()["constraints"]["roll"]["roll_p_sinusoid"]["satisfied"]
+    assert {"roll_step.csv", "step_response.csv"} <= set(roll.logs)
+    assert {e.path.name for e in result.notes} == {"roll_step.csv", "step_response.csv"}

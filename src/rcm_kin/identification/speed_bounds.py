@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rcm_kin.dynamics.axis_friction import AxisFriction
-from rcm_kin.dynamics.drive import DRIVEN, DriveParameters
+from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, drive_constants, holding_pwm
 from rcm_kin.hardware import ENCODER_COUNT, HOME_INSERTION, P_GAINS
 from rcm_kin.identification.telemetry import TelemetryLog, load_telemetry
@@ -110,11 +110,13 @@ def is_ramp(log: TelemetryLog) -> bool:
     return bool(abs(u[0]) <= RAMP_START and np.unique(u).size >= RAMP_LEVELS and monotone)
 
 
-def damping_bound(source, params: DriveParameters) -> dict:
-    """The runaway at the end of the pitch ramp log ``source`` (path or log): time (s), speed
+def damping_bound(source, params: DriveParameters | None = None) -> dict:
+    """The runaway at the end of the pitch ramp log ``source`` (path or log) with the drive of
+    ``params`` (default: the shipped set): time (s), speed
     peak (deg/s), PWM there (counts), back-EMF damping and the bound on the viscous friction
     beyond it (N m s/rad), the travel (deg) and the bound on the friction at the peak (N m)."""
     log, i = (source if isinstance(source, TelemetryLog) else load_telemetry(source)), DRIVEN.index("pitch")
+    params = params or load_drive_parameters()
     angle = -log.position["pitch"] * ENCODER_COUNT[i]                   # counts -> deg
     t, u = log.time, log.pwm["pitch"]
     speed = np.gradient(angle, t)                                       # central differences
