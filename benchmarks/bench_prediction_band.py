@@ -29,8 +29,8 @@ from common import best_of  # noqa: E402
 
 from rcm_kin.dynamics.drive import load_drive_parameters  # noqa: E402
 from rcm_kin.dynamics.stick_slip import axis_plant  # noqa: E402
-from rcm_kin.identification.bands import drive_file_band, predict_band  # noqa: E402
 from rcm_kin.identification.drive_train import axis_log, fit_percent, predict_log  # noqa: E402
+from rcm_kin.identification.file_bands import drive_file_band, predict_band  # noqa: E402
 from rcm_kin.identification.identify import base_model, predict_file  # noqa: E402
 from rcm_kin.identification.log_catalog import catalog  # noqa: E402
 

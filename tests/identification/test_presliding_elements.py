@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from rcm_kin.dynamics.stick_slip import AxisFriction, AxisPlant
+from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.drive_train import (
     NAMES,
     AxisLog,
@@ -67,3 +68,25 @@ def test_a_logs_rest_carries_the_preload(preload):
     relaxed = predict_log(FRICTION, PLANT, log)
     np.testing.assert_array_equal(relaxed, predict_log(FRICTION, PLANT, log, preload=0.0))
     assert np.max(np.abs(predict_log(FRICTION, PLANT, log, preload=preload) - relaxed)) > 1e-4
+
+
+@pytest.mark.parametrize("preload", [-0.8, 0.5])
+def test_a_preloaded_rest_is_a_static_equilibrium(preload):
+    """Under its first PWM held, a preloaded rest stays where it is: the spring's force plus the
+    shifted gravity balance the motor torque (a preload on top of a fully balanced gravity would
+    leave the link pushed by the spring alone, and it would creep off the rest)."""
+    log = step_log()
+    held = AxisLog(log.name, log.joint, log.period, np.full(log.pwm.size, log.pwm[0]), log.measured, log.pose)
+    moved = predict_log(FRICTION, PLANT, held, preload=preload) - held.measured[0]
+    assert np.max(np.abs(moved)) < 1e-9
+    shifted, state = at_rest(FRICTION, PLANT, log.measured[0], log.pwm[0], preload=preload)
+    torque = PLANT.input_gain * log.pwm[0]
+    gravity = np.interp(state[2], shifted.grid, shifted.gravity)
+    assert torque - gravity == pytest.approx(preload * FRICTION.presliding_force, abs=1e-9)
+
+
+@pytest.mark.parametrize("preload", [1.5, -1.01, float("nan")])
+def test_a_preload_outside_its_range_is_refused(preload):
+    log = step_log()
+    with pytest.raises(RcmKinError, match=r"fraction of the slip force in \[-1, 1\]"):
+        at_rest(FRICTION, PLANT, log.measured[0], log.pwm[0], preload=preload)

@@ -47,7 +47,9 @@ def add_identify(sub) -> None:
     add_force(p, "overwrite --out if it exists")
     add_params(p, "starting drive parameter TOML (default: the shipped set)")
     add_json(p, '{"parameters", "standard_errors", "jackknife_standard_errors", "undetermined", "logs", "fits", '
-                '"cross_validation", "skipped", "written"}')
+                '"cross_validation", "skipped", "written", "notes", "folds", "ranges", "constraints", "preloads", '
+                '"cross_validation_band": {joint: {log: {"coverage", "final_inside", "end_width_over_travel", '
+                '"median_fit_percent", ...}}}}')
     p.set_defaults(func=cmd_identify)
 
 
@@ -78,6 +80,13 @@ def _identify_lines(result) -> list[str]:
             lines.append("  leave-one-log-out: fit %, final travel measured / error (deg), stick time s")
             lines += [f"  {c.name:44} {c.fit_percent:7.1f}  {c.travel_deg:+.2f} / {c.final_error_deg:+.2f}  "
                       f"{c.stick_time:.2f} (model {c.predicted_stick_time:.2f})" for c in r.cross_validation]
+        if r.cv_bands:
+            lines.append(f"  left-out {r.cv_bands[0].level:.0%} band: coverage, final inside, end width / travel, "
+                         "median fit %, median final error (deg)")
+            lines += [f"  {b.name:44} {b.coverage:5.0%}  {'yes' if b.final_inside else 'no ':3}  "
+                      + (f"{b.end_width_over_travel:5.2f}" if b.end_width_over_travel is not None else "    -")
+                      + f"  {b.median_fit:7.1f}  {np.degrees(b.median[-1] - b.measured[-1]):+.2f}"
+                      + ("  (extrapolated)" if b.extrapolated else "") for b in r.cv_bands]
         for b in r.bounds:
             value = b.value(r.friction)
             lines.append(f"  constraint {b.name}: friction at {np.degrees(b.speed):.0f} deg/s {value:.3g} <= "

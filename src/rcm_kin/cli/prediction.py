@@ -68,7 +68,7 @@ def cmd_predict(args) -> None:
 
         log, predicted, check = predict_file(params, args.log, args.joint)
     else:
-        from rcm_kin.identification.bands import predict_band
+        from rcm_kin.identification.file_bands import predict_band
 
         log, predicted, check, band = predict_band(params, args.log, args.joint, args.band)
     payload = {"fit_percent": check.fit_percent, "final_error_deg": check.final_error_deg,

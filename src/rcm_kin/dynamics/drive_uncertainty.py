@@ -9,6 +9,8 @@ Written by the identification and the calibration, read with the rest of the fil
     roll = [1.2, -0.4, ...]             (measured minus predicted, each hold left out of its fit)
     [uncertainty.ranges.roll]           parameters the logs do not determine: the range over which
     presliding_force = [0.9, 5.0]       the fit on every log stays as good (SI)
+    [uncertainty.preloads]              per joint: the presliding spring's force at each log's first
+    roll = [-0.3, 0.1, 0.2]             rest (its best preload), as a fraction of its slip force
     [[uncertainty.folds.roll]]          one table per leave-one-log-out fold: the log it left out
     left_out = "roll_step_...csv"       and its drive-train parameters (AxisFriction's keys)
     extra_inertia = 0.7
@@ -30,7 +32,8 @@ from rcm_kin.errors import ParameterFileError
 
 ANGLE = Range("rad", -np.pi, np.pi)
 RESIDUAL = Range("PWM counts", -255.0, 255.0)
-PARTS = ("hull", "holding_residuals", "ranges", "folds")
+PRELOAD = Range("fraction of the slip force", -1.0, 1.0)
+PARTS = ("hull", "holding_residuals", "ranges", "folds", "preloads")
 
 
 @dataclass(frozen=True)
@@ -44,16 +47,18 @@ class FoldSet:
 @dataclass(frozen=True)
 class DriveUncertainty:
     """Per joint: the leave-one-log-out parameter sets, the ranges of the parameters the logs do not
-    determine (SI), the leave-one-hold-out holding residuals (PWM counts, measured minus predicted)
-    and the range of poses the calibration saw (rad)."""
+    determine (SI), the leave-one-hold-out holding residuals (PWM counts, measured minus predicted),
+    the range of poses the calibration saw (rad) and the presliding preloads the logs'
+    first rests show (fractions of the slip force)."""
 
     folds: dict[str, tuple[FoldSet, ...]] = field(default_factory=dict)
     ranges: dict[str, dict[str, tuple[float, float]]] = field(default_factory=dict)
     holding_residuals: dict[str, np.ndarray] = field(default_factory=dict)
     hull: dict[str, tuple[float, float]] = field(default_factory=dict)
+    preloads: dict[str, tuple[float, ...]] = field(default_factory=dict)
 
     def __bool__(self) -> bool:
-        return any((self.folds, self.ranges, self.holding_residuals, self.hull))
+        return any((self.folds, self.ranges, self.holding_residuals, self.hull, self.preloads))
 
 
 def _error(path, key: str, text: str) -> ParameterFileError:
@@ -89,6 +94,11 @@ def parse_uncertainty(path, raw, driven) -> DriveUncertainty:
                                  table="uncertainty", key=None)
     hull = {j: _pair(v, ANGLE, path, f"hull.{j}")
             for j, v in _joint_tables(raw.get("hull", {}), path, "hull", driven).items()}
+    preloads = {}
+    for j, v in _joint_tables(raw.get("preloads", {}), path, "preloads", driven).items():
+        if not isinstance(v, list) or not v:
+            raise _error(path, f"preloads.{j}", f"must be a list of numbers ({PRELOAD.unit})")
+        preloads[j] = tuple(PRELOAD.check(x, path, "uncertainty.preloads", j) for x in v)
     residuals = {}
     for j, v in _joint_tables(raw.get("holding_residuals", {}), path, "holding_residuals", driven).items():
         if not isinstance(v, list) or not v:
@@ -116,7 +126,7 @@ def parse_uncertainty(path, raw, driven) -> DriveUncertainty:
             values = check_table(entry, DRIVE_TRAIN, path, f"uncertainty.folds.{j}", DRIVE_TRAIN_DEFAULT)
             out.append(FoldSet(left_out, AxisFriction(**values)))
         folds[j] = tuple(out)
-    return DriveUncertainty(folds, ranges, residuals, hull)
+    return DriveUncertainty(folds, ranges, residuals, hull, preloads)
 
 
 def uncertainty_lines(u: DriveUncertainty) -> list[str]:
@@ -130,6 +140,8 @@ def uncertainty_lines(u: DriveUncertainty) -> list[str]:
     if u.holding_residuals:
         lines += ["", "[uncertainty.holding_residuals]"]
         lines += [f"{j} = {numbers(v)}" for j, v in u.holding_residuals.items()]
+    if u.preloads:
+        lines += ["", "[uncertainty.preloads]"] + [f"{j} = {numbers(v)}" for j, v in u.preloads.items()]
     for j, table in u.ranges.items():
         lines += ["", f"[uncertainty.ranges.{j}]"] + [f"{n} = {numbers(v)}" for n, v in table.items()]
     for j, sets in u.folds.items():

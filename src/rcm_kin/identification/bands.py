@@ -8,8 +8,11 @@ the recorded PWM or the recorded law, no refitting), its members the product of
   Gauss-Newton errors are far narrower than that spread);
 - each parameter the logs do not determine (``[uncertainty.ranges]``), put in every set at the ends
   and the middle of its range (the middle geometric where the range spans a decade or more);
-- the presliding spring's state before the record (``preload`` in [-1, 1], left by an approach
-  from below or above; 0 the relaxed rest), evenly spread: the logs do not record it.
+- the presliding spring's state before the record, which the log does not record: its force at the
+  first rest (``preload`` F_p, :func:`rcm_kin.identification.drive_train.at_rest`, which keeps the
+  rest a static equilibrium by shifting the gravity by as much) taken at the values the other logs
+  show (:func:`best_preloads`: each log's best preload under the set; ``[uncertainty.preloads]`` in
+  a drive file), or evenly over [-1, 1] where none is known.
 
 Pointwise, the band is the ``(1 - level) / 2`` and ``(1 + level) / 2`` quantiles of the members'
 angles, the median between them, each member counted once. It is a spread of the model, not a
@@ -29,18 +32,19 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
-from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.stick_slip import AxisFriction, AxisPlant
 from rcm_kin.errors import RcmKinError
-from rcm_kin.identification.drive_train import AxisLog, LogCheck, fit_percent, predict_log
-from rcm_kin.identification.identify import file_record, predict_record
+from rcm_kin.identification.drive_train import AxisLog, fit_percent, predict_log
+from rcm_kin.identification.log_checks import stick_time
 from rcm_kin.identification.telemetry import step_index
 from rcm_kin.plotting import prediction_figure
 from rcm_kin.statics.holding_band import check_level
 
 LEVEL = 0.9          # default band level
-PRELOADS = 9         # presliding preloads, evenly over [-1, 1]
+PRELOADS = 9         # presliding preloads evenly over [-1, 1] when the logs' own are not known
+PRELOAD_TOLERANCE = 1e-3   # a log's best preload, to this fraction of the slip force
 RANGE_VALUES = 3     # values of each undetermined parameter: its ends and middle
 DECADE = 10.0        # a range with hi / lo at least this is spread geometrically
 WORKERS = 4          # threads simulating the members at most (the kernels release the GIL)
@@ -65,11 +69,12 @@ def range_values(lo: float, hi: float, count: int = RANGE_VALUES) -> np.ndarray:
 
 
 def ensemble(sets, ranges: dict[str, tuple[float, float]] | None = None, preloads: int = PRELOADS,
-             folds: int | None = None) -> Ensemble:
+             folds: int | None = None, preload_values=None) -> Ensemble:
     """Every parameter set of ``sets`` with each parameter of ``ranges`` (name: (lo, hi), SI) at
-    :func:`range_values`, at ``preloads`` presliding preloads evenly over [-1, 1] (1: the relaxed
-    rest, preload 0, only). ``folds``: how many of ``sets`` are fold sets (the rest the file's own);
-    None: all of them."""
+    :func:`range_values`, at the presliding preloads ``preload_values`` (fractions of the slip force in
+    [-1, 1], e.g. :func:`best_preloads`) or, without them, at ``preloads`` preloads evenly over
+    [-1, 1] (1: the relaxed rest only). ``folds``: how many of ``sets`` are fold sets (the rest the
+    file's own); None: all of them."""
     sets = list(sets)
     if not sets:
         raise RcmKinError("a prediction band needs at least one parameter set", parameter="sets")
@@ -80,12 +85,42 @@ def ensemble(sets, ranges: dict[str, tuple[float, float]] | None = None, preload
     variants = [dict()]
     for name, vs in values.items():
         variants = [{**v, name: x} for v in variants for x in vs]
-    loads = np.linspace(-1.0, 1.0, preloads) if preloads > 1 else np.zeros(1)
+    if preload_values is None:
+        loads = np.linspace(-1.0, 1.0, preloads) if preloads > 1 else np.zeros(1)
+    else:
+        loads = np.asarray(preload_values, dtype=float).ravel()
+        if loads.size == 0 or not np.all((loads >= -1.0) & (loads <= 1.0)):
+            raise RcmKinError("presliding preloads are fractions of the slip force in [-1, 1], got "
+                              f"{preload_values!r}"[:200], parameter="preload_values")
     members = tuple((replace(s, **v), float(p)) for s in sets for v in variants for p in loads)
     folds = len(sets) if folds is None else folds
     sources = {"fold_sets": folds, "own_set": len(sets) - folds, **{n: len(v) for n, v in values.items()},
                "preload": int(loads.size)}
     return Ensemble(members, sources, values)
+
+
+def best_preload(friction: AxisFriction, plant: AxisPlant, log: AxisLog) -> float:
+    """The preload (fraction of the slip force, in [-1, 1]) under which ``friction`` predicts
+    ``log`` best (least squares from the sample before the step; bounded scalar search)."""
+    start = scored_from(log)
+
+    def cost(p: float) -> float:
+        return float(np.sum((predict_log(friction, plant, log, preload=p)[start:] - log.measured[start:]) ** 2))
+
+    return float(minimize_scalar(cost, bounds=(-1.0, 1.0), method="bounded",
+                                 options={"xatol": PRELOAD_TOLERANCE}).x)
+
+
+def best_preloads(friction: AxisFriction, plants, logs,
+                  hull: dict[str, tuple[float, float]] | None = None) -> tuple[float, ...]:
+    """The step logs' best preloads (:func:`best_preload`) under ``friction``: how far from relaxed
+    the spring's state at a first rest was, as the logs show it. Closed-loop records
+    (their rest is the loop's) are left out, and so are logs outside the calibrated poses ``hull``
+    (:func:`hull_check`): a preload is also a gravity offset (``at_rest``), so there it would
+    measure the rigid-body model's error away from its calibration, not the spring. None left: (0,)."""
+    best = [best_preload(friction, p, g) for p, g in zip(plants, logs) if g.law is None
+            and not (hull and hull_check(g, hull, (g.measured.min(), g.measured.max()))[0])]
+    return tuple(best) or (0.0,)
 
 
 def simulate_members(members, plant: AxisPlant, log: AxisLog, workers: int | None = None) -> np.ndarray:
@@ -171,6 +206,18 @@ class PredictionBand:
         """NRMSE fit (%) of the median from ``start`` on."""
         return fit_percent(self.measured[self.start:], self.median[self.start:])
 
+    def scores(self) -> dict:
+        """The band's scores on its log (what ``identify --cv`` reports per left-out log): coverage,
+        final angle inside, end width over travel, the median's fit (%), final error (deg) and stick
+        time (s) beside the measured one."""
+        period = float(self.time[1] - self.time[0]) if self.time.size > 1 else 0.0
+        return {"coverage": self.coverage, "final_inside": self.final_inside,
+                "end_width_over_travel": self.end_width_over_travel, "median_fit_percent": self.median_fit,
+                "median_final_error_deg": float(np.degrees(self.median[-1] - self.measured[-1])),
+                "travel_deg": float(np.degrees(self.travel)), "stick_time_s": stick_time(self.measured, period),
+                "median_stick_time_s": stick_time(self.median, period), "members": self.members,
+                "extrapolated": self.extrapolated}
+
     def as_dict(self) -> dict:
         """The band in degrees, its scores and sources (the ``predict --band`` JSON's ``band``)."""
         def deg(x):
@@ -234,38 +281,26 @@ def band_of(trajectories: np.ndarray, log: AxisLog, level: float = LEVEL, source
 
 def prediction_band(sets, plant: AxisPlant, log: AxisLog, level: float = LEVEL,
                     ranges: dict[str, tuple[float, float]] | None = None, preloads: int = PRELOADS,
-                    hull: dict[str, tuple[float, float]] | None = None, folds: int | None = None) -> PredictionBand:
+                    hull: dict[str, tuple[float, float]] | None = None, folds: int | None = None,
+                    preload_values=None) -> PredictionBand:
     """The band of the parameter sets ``sets`` (:class:`AxisFriction`; ``folds`` of them fold sets,
-    default all) over ``log`` on ``plant``: the :func:`ensemble` simulated (:func:`simulate_members`)
-    and its quantiles (:func:`band_of`). Sets fitted without ``log`` give its left-out band."""
+    default all) over ``log`` on ``plant``: the :func:`ensemble` (at ``preload_values`` when given)
+    simulated (:func:`simulate_members`) and its quantiles
+    (:func:`band_of`). Sets fitted without ``log`` give its left-out band."""
     level = check_level(level)
-    members = ensemble(sets, ranges, preloads, folds)
+    members = ensemble(sets, ranges, preloads, folds, preload_values)
     return band_of(simulate_members(members.members, plant, log), log, level, members.sources,
                    members.undetermined, hull)
 
 
-def drive_file_band(params: DriveParameters, log: AxisLog, plant: AxisPlant, level: float = LEVEL,
-              preloads: int = PRELOADS) -> PredictionBand:
-    """The band of the drive file ``params`` over ``log`` (its ``joint``) on ``plant``: its own
-    ``[drive_train.<joint>]`` and its ``[uncertainty]`` folds, ranges and hull. A file without fold
-    sets is a clear error."""
-    joint = log.joint
-    level = check_level(level)
-    folds = params.uncertainty.folds.get(joint, ())
-    if not folds:
-        raise RcmKinError(f"no leave-one-log-out parameter sets in {params.source}: run rcm-kin identify --cv")
-    sets = [s.friction for s in folds] + [params.drive_train[joint]]
-    return prediction_band(sets, plant, log, level, params.uncertainty.ranges.get(joint), preloads,
-                           params.uncertainty.hull, folds=len(folds))
-
-
-def predict_band(params: DriveParameters, path, joint: str, level: float = LEVEL,
-                 preloads: int = PRELOADS) -> tuple[AxisLog, np.ndarray, LogCheck, PredictionBand]:
-    """``rcm-kin predict --band``: the log at ``path`` as :func:`predict_file` reads it, the file's
-    point prediction (rad) and its check, and the file's band (:func:`drive_file_band`)."""
-    level = check_level(level)
-    if not params.uncertainty.folds.get(joint):
-        raise RcmKinError(f"no leave-one-log-out parameter sets in {params.source}: run rcm-kin identify --cv")
-    log, plant = file_record(params, path, joint)
-    predicted, check = predict_record(params, log, plant)
-    return log, predicted, check, drive_file_band(params, log, plant, level, preloads)
+def left_out_band(fold: AxisFriction, inner, plant: AxisPlant, log: AxisLog, others, level: float = LEVEL,
+                  ranges: dict[str, tuple[float, float]] | None = None,
+                  hull: dict[str, tuple[float, float]] | None = None) -> PredictionBand:
+    """The band of a log left out of the fit: its fold's set ``fold`` (fitted without ``log``) and
+    that fold's inner sets ``inner`` (each fitted without ``log`` and one other), the preloads the
+    other logs show under ``fold`` (``others``: their (plant, log) pairs, :func:`best_preloads`),
+    and the undetermined ``ranges``: nothing in it was fitted on ``log``."""
+    plants, logs = zip(*others) if others else ((), ())
+    sets = [fold, *inner]
+    return prediction_band(sets, plant, log, level, ranges, PRELOADS, hull, folds=len(sets),
+                           preload_values=best_preloads(fold, plants, logs, hull))

@@ -177,12 +177,19 @@ def at_rest(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float,
             preload: float = 0.0) -> tuple[AxisPlant, np.ndarray]:
     """``plant`` with its gravity shifted so that ``pwm`` holds the axis at rest with the measured
     (motor-side) angle ``angle`` (rad), and that rest state (:func:`rest_state`: the link behind
-    the cable's stretch, the presliding spring relaxed, or carrying ``preload`` F_p, ``preload`` in
-    [-1, 1], the state a previous approach left)."""
+    the cable's stretch, the presliding spring relaxed). With ``preload`` in [-1, 1] the spring
+    carries ``preload`` F_p of the holding torque, the state a previous approach left, and the
+    gravity is shifted by that much less: the rest stays a static equilibrium (the spring's force
+    and the shifted gravity balance the motor torque), so the preload is also a statement about the
+    gravity at the rest, which the holding calibration bounds (:func:`rcm_kin.identification.bands.spring_loads`)."""
+    if not -1.0 <= preload <= 1.0:
+        raise RcmKinError(f"the presliding preload is a fraction of the slip force in [-1, 1], got {preload!r}",
+                          parameter="preload")
     state = rest_state(friction, plant, angle, pwm)
     unbalanced = plant.input_gain * pwm - np.interp(state[2], plant.grid, plant.gravity)
-    plant = replace(plant, gravity=plant.gravity + unbalanced)
-    return plant, rest_state(friction, plant, angle, pwm, preload)
+    carried = preload * friction.presliding_force if friction.presliding_stiffness > 0 else 0.0
+    plant = replace(plant, gravity=plant.gravity + (unbalanced - carried))
+    return plant, rest_state(friction, plant, angle, pwm)
 
 
 def _logged(name: str) -> bool:

@@ -22,6 +22,7 @@ from rcm_kin.dynamics.drive_uncertainty import DriveUncertainty, FoldSet
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
 from rcm_kin.dynamics.stick_slip import AxisFriction, AxisPlant, axis_plant
 from rcm_kin.errors import RcmKinError
+from rcm_kin.identification.bands import LEVEL, PredictionBand, best_preloads, left_out_band
 from rcm_kin.identification.cross_validation import fit_with_cv, task_count, undetermined_ranges
 from rcm_kin.identification.drive_train import (
     DEFAULT_TERMS,
@@ -59,6 +60,8 @@ class JointIdentification:
     folds: tuple[AxisFriction, ...] = ()   # per left-out log (aligned with cross_validation): its fold's fit
     inner_folds: tuple[tuple[AxisFriction, ...], ...] = ()  # per left-out log k: fits on all but k and j, j != k
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)   # undetermined parameters' ranges (SI)
+    preloads: tuple[float, ...] = ()    # the logs' best presliding preloads (fractions of F_p, best_preloads)
+    cv_bands: tuple[PredictionBand, ...] = ()     # per left-out log (aligned with cross_validation): its band
 
 
 @dataclass(frozen=True)
@@ -86,7 +89,10 @@ class Identification:
                 "folds": {j: [{"left_out": c.name, **f.as_dict()} for c, f in zip(r.cross_validation, r.folds)]
                           for j, r in self.joints.items()},
                 "ranges": {j: {n: list(v) for n, v in r.ranges.items()} for j, r in self.joints.items()},
-                "constraints": {j: {b.name: b.as_dict(r.friction) for b in r.bounds} for j, r in self.joints.items()}}
+                "constraints": {j: {b.name: b.as_dict(r.friction) for b in r.bounds} for j, r in self.joints.items()},
+                "preloads": {j: list(r.preloads) for j, r in self.joints.items() if r.preloads},
+                "cross_validation_band": {j: {b.name: b.scores() for b in r.cv_bands}
+                                          for j, r in self.joints.items() if r.cv_bands}}
 
 
 def _finite(errors: dict[str, float]) -> dict[str, float]:
@@ -112,10 +118,13 @@ def joint_records(entries: list[CatalogEntry], model: DrivenDynamics,
 
 
 def identify_joint(joint: str, logs: list[AxisLog], plants: list[AxisPlant], cv: bool, terms=None,
-                   seed: int = 0, progress=None, bounds=(), workers: int | None = None) -> JointIdentification:
+                   seed: int = 0, progress=None, bounds=(), workers: int | None = None,
+                   hull: dict | None = None) -> JointIdentification:
     """Fit ``joint``'s drive train on ``logs`` subject to ``bounds`` (:mod:`speed_bounds`; with ``cv``
-    cross-validated, leaving one log out, with the inner folds), the fits on ``workers`` processes
-    (:func:`fit_with_cv`); ``progress()`` is called once per finished fit."""
+    cross-validated, leaving one log out, with the inner folds, and each left-out log's 90 % band,
+    :func:`left_out_band`, its poses checked against ``hull``), the fits on ``workers`` processes
+    (:func:`fit_with_cv`); ``progress()`` is called once per finished fit. The presliding preloads
+    the logs' first rests show under the fit are its ``preloads``."""
     search = search_for(TERMS.get(joint, DEFAULT_TERMS) if terms is None else terms)
     result = fit_with_cv(search, plants, logs, seed, GENERATIONS, bounds, cv=cv, inner=cv, workers=workers,
                          progress=progress)
@@ -124,10 +133,13 @@ def identify_joint(joint: str, logs: list[AxisLog], plants: list[AxisPlant], cv:
                  for log, p in zip(logs, plants))
     errors = dict(zip(search.free, map(float, sigma)))
     ranges = undetermined_ranges(friction, plants, logs, [n for n, v in errors.items() if not np.isfinite(v)])
+    pairs = list(zip(plants, logs))
+    bands = tuple(left_out_band(result.folds[k], result.inner[k], *pairs[k], pairs[:k] + pairs[k + 1:], LEVEL,
+                                ranges, hull) for k in range(len(logs))) if cv else ()
     return JointIdentification(joint, friction, errors,
                                jackknife_errors(result.folds, search.free) if result.folds else {},
                                tuple(log.name for log in logs), fits, result.checks, tuple(bounds), result.folds,
-                               result.inner, ranges)
+                               result.inner, ranges, best_preloads(friction, plants, logs, hull), bands)
 
 
 def identify(paths, params: DriveParameters | None = None, joints=("roll",), cv: bool = False,
@@ -152,7 +164,7 @@ def identify(paths, params: DriveParameters | None = None, joints=("roll",), cv:
             bar.set_postfix_str(f"{joint}: {len(logs)} logs")
             bounds = speed_bounds(model, params, joint, _ramp_candidates(entries) if joint == "pitch" else ())
             results[joint] = identify_joint(joint, logs, plants, cv, seed=seed, progress=lambda: bar.update(),
-                                            bounds=bounds)
+                                            bounds=bounds, hull=params.uncertainty.hull)
     skipped = tuple(e for e in entries if e.kind == "skipped")
     notes = tuple(e for e in entries if e.note and e.joint in results)
     params = with_drive_trains(params, {j: r.friction for j, r in results.items()})
@@ -167,7 +179,8 @@ def with_uncertainty(uncertainty: DriveUncertainty, results: dict[str, JointIden
                                      for j, r in results.items() if r.folds}}
     ranges = {**{j: v for j, v in uncertainty.ranges.items() if j not in results},
               **{j: r.ranges for j, r in results.items() if r.ranges}}
-    return replace(uncertainty, folds=folds, ranges=ranges)
+    preloads = {**uncertainty.preloads, **{j: r.preloads for j, r in results.items() if r.preloads}}
+    return replace(uncertainty, folds=folds, ranges=ranges, preloads=preloads)
 
 
 def _ramp_candidates(entries: list[CatalogEntry]) -> list:
