@@ -57,3 +57,30 @@ def test_an_undetermined_parameter_spans_its_range_and_a_determined_one_does_not
     assert hi == 5.0 and lo <= 4.0
     lo, hi = ranges["viscous"]
     assert lo <= 6.0 <= hi and hi - lo < 6.0
+
+
+def test_a_left_out_band_does_not_move_with_its_own_log(monkeypatch):
+    """``identify_joint --cv`` scores a band per left-out log; the band of log 0 (its lower and upper
+    edges) is built from nothing fitted on log 0 (only its first rest and its PWM, where every
+    prediction of it starts), so changing log 0's measured angle after its start leaves it as it
+    was while its scores (against the new angle) change; the preloads the fit lists are one per log
+    and reach the file's ``[uncertainty.preloads]``."""
+    from rcm_kin.identification import identify as module
+
+    monkeypatch.setattr(module, "GENERATIONS", (6, 6))
+    plant, logs = _steps(TRUTH)
+    first = module.identify_joint("roll", logs, [plant] * 3, cv=True, terms=("viscous", "presliding"), workers=1)
+    odd = replace(logs[0], measured=np.r_[logs[0].measured[0], logs[0].measured[1:] + 0.01])
+    second = module.identify_joint("roll", [odd] + logs[1:], [plant] * 3, cv=True, terms=("viscous", "presliding"),
+                                   workers=1)
+    a, b = first.cv_bands[0], second.cv_bands[0]
+    np.testing.assert_array_equal(a.lower, b.lower)
+    np.testing.assert_array_equal(a.upper, b.upper)
+    assert a.coverage != b.coverage or a.median_fit != b.median_fit
+    assert [band.name for band in first.cv_bands] == [c.name for c in first.cross_validation]
+    assert a.sources["fold_sets"] == 1 + 2 and a.sources["preload"] == 2     # fold + 2 inner sets; 2 other logs
+    assert len(first.preloads) == 3 and all(-1.0 <= p <= 1.0 for p in first.preloads)
+    payload = module.Identification({"roll": first}, (), module.load_drive_parameters()).as_dict()
+    assert set(payload["cross_validation_band"]["roll"]) == {"step 0", "step 1", "step 2"}
+    assert payload["preloads"]["roll"] == list(first.preloads)
+    assert module.with_uncertainty(module.DriveUncertainty(), {"roll": first}).preloads["roll"] == first.preloads
