@@ -248,8 +248,8 @@ def test_a_left_out_band_uses_nothing_fitted_on_its_log():
     the same as :func:`prediction_band` called with them by hand."""
     plant = pendulum()
     truth = AxisFriction(viscous=2.0, coulomb=0.05, presliding_stiffness=20.0, presliding_force=0.8)
-    logs = [replace(g, measured=predict_log(truth, plant, g, preload=p))
-            for g, p in ((step(size=-8.0, samples=600), 0.2), (step(0.2, -6.0, 600), -0.3), (step(-0.1, 9.0, 600), 0.0))]
+    steps = ((step(size=-8.0, samples=600), 0.2), (step(0.2, -6.0, 600), -0.3), (step(-0.1, 9.0, 600), 0.0))
+    logs = [replace(g, measured=predict_log(truth, plant, g, preload=p)) for g, p in steps]
     fold, inner = replace(truth, viscous=2.2), [replace(truth, viscous=1.8)]
     band = left_out_band(fold, inner, plant, logs[0], [(plant, logs[1]), (plant, logs[2])], 0.8)
     by_hand = prediction_band([fold, *inner], plant, logs[0], 0.8,

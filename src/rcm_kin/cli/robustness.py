@@ -66,7 +66,7 @@ def add_robustness(sub) -> None:
     add_json(p, '{"samples", "seed", "experiment", "controllers": {NAME: {"roll": {"max_error_deg": {"p5", "median", '
                 '"p95", "worst"}, "mean_error_deg": {...}, "saturated_fraction"}, "pitch": {...}, "unstable_fraction", '
                 '"stability": {...} | null}}, "uncertainty": {PARAMETER: {"nominal", "sigma", "distribution", '
-                '"source"}}}')
+                '"source"}}, "drive_train_source": {JOINT: "fold sets (N) and the own set" | "spreads (...)"}}')
     p.set_defaults(func=cmd_robustness)
 
 
@@ -74,7 +74,7 @@ def cmd_robustness(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.parallel import dask_client
     from rcm_kin.robustness.execution import run_robustness
-    from rcm_kin.robustness.sampling import read_standard_errors, uncertain_parameters
+    from rcm_kin.robustness.sampling import drive_train_sources, read_standard_errors, uncertain_parameters
     from rcm_kin.robustness.task import Study
     from rcm_kin.robustness.work import check_robustness
 
@@ -96,6 +96,7 @@ def cmd_robustness(args) -> None:
         radius = (f"400 Hz radius median {c.firmware_spectral_radius.median:.4f} worst "
                   f"{c.firmware_spectral_radius.worst:.4f}" if c.has_margin else "no linear margin")
         lines.append(f"  {name:20} {'  '.join(cells)}  unstable {c.unstable_fraction:.0%}  {radius}")
+    lines += [f"drive train {joint}: {source}" for joint, source in drive_train_sources(study.uncertain).items()]
     if out:
         from rcm_kin.robustness.figures import robustness_figure
 

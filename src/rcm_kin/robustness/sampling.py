@@ -25,9 +25,23 @@ stays 0 (there is no scale to take a relative spread of; give it a standard erro
 Distributions: a positive parameter is log-normal with its nominal value as the median and
 ``sigma / nominal`` as the standard deviation of its logarithm (about ``sigma`` for spreads of a
 few tens of per cent, and never of the wrong sign); a signed one (the presliding spring's slope,
-the first moments) is normal. Sample ``i`` of a run with seed ``s`` draws from
-``numpy.random.SeedSequence(s).spawn(N)[i]`` alone, so a sample is the same whichever batch or
-worker computes it.
+the first moments) is normal.
+
+A joint whose file carries leave-one-log-out fold sets (``[uncertainty.folds.<joint>]``, the sets
+the prediction bands use, :mod:`rcm_kin.identification.file_bands`) draws its drive train as a
+whole instead: ``drive_train.<joint>`` picks one of the fold sets or the file's own set, each as
+likely (the value is the set's index: the folds in the file's order, then the own set), and each
+parameter the logs do not determine (``[uncertainty.ranges.<joint>]``) is then drawn uniformly
+over its range in that set (log-uniformly where the range spans a decade,
+:data:`rcm_kin.identification.bands.DECADE`), named ``drive_train.<joint>.<name>``. The
+per-parameter spreads of that joint's drive train (standard errors or default) are then NOT also
+applied: the fold sets are that spread, measured. Without fold sets the ranges are not used and the
+draws are what they were before fold sets existed. The other parameters (``volts_per_pwm``, the
+first moments, a joint without fold sets) keep their spreads.
+
+Sample ``i`` of a run with seed ``s`` draws from ``numpy.random.SeedSequence(s).spawn(N)[i]``
+alone (the spreads' standard normal deviates first, then one uniform deviate per set choice or
+range), so a sample is the same whichever batch or worker computes it.
 """
 
 from __future__ import annotations
@@ -41,7 +55,8 @@ import numpy as np
 from rcm_kin.dynamics.axis_friction import DISCRETE
 from rcm_kin.dynamics.drive import DriveParameters, with_joint
 from rcm_kin.dynamics.stick_slip import TERM_PARAMETERS, TERMS
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, warn
+from rcm_kin.identification.bands import DECADE
 from rcm_kin.identification.drive_train import terms_of
 from rcm_kin.identification.identify import with_drive_trains
 
@@ -58,23 +73,44 @@ DEFAULT_RELATIVE_SPREAD = {
 SMOOTH_FIELDS = ("extra_inertia", "viscous", "coulomb")
 SIGNED = ("presliding_slope",)   # drive-train parameters that may take either sign
 DRIVEN_AXES = ("roll", "pitch")
+SPREAD, UNIFORM, LOG_UNIFORM, CHOICE = "spread", "uniform", "log-uniform", "one of the sets"   # Uncertain.kind
 
 
 @dataclass(frozen=True)
 class Uncertain:
     """One uncertain parameter: its name (where it lives), nominal value and 1-sigma spread in its
     own units, whether it is drawn log-normal (positive) or normal (signed), and where the spread
-    came from."""
+    came from. A parameter drawn uniformly (``kind`` :data:`UNIFORM` or :data:`LOG_UNIFORM`) has
+    its range ``[low, high]`` instead of a spread (``sigma`` NaN); a choice of drive-train set
+    (:data:`CHOICE`) is an index over ``[low, high]`` (0 to the number of sets less one), its
+    nominal the file's own set."""
 
     name: str
     nominal: float
     sigma: float
     positive: bool
-    source: str            # "jackknife", "gauss-newton" or "default <kind> <fraction>"
+    source: str            # "jackknife", "gauss-newton", "default <kind> <fraction>", or the fold sets / range
+    low: float = np.nan
+    high: float = np.nan
+    kind: str = SPREAD
+
+    @property
+    def distribution(self) -> str:
+        """``log-normal`` or ``normal`` (a spread), ``uniform``, ``log-uniform`` or ``one of the sets``."""
+        return ("log-normal" if self.positive else "normal") if self.kind == SPREAD else self.kind
+
+    def from_unit(self, x: float) -> float:
+        """The value of a uniformly drawn parameter at ``x`` in [0, 1) (a choice: the set's index)."""
+        if self.kind == CHOICE:
+            return float(min(int(x * (self.high + 1)), self.high))
+        if self.kind == LOG_UNIFORM:
+            return float(self.low * (self.high / self.low) ** x)
+        return float(self.low + x * (self.high - self.low))
 
     def as_dict(self) -> dict:
-        return {"nominal": self.nominal, "sigma": self.sigma,
-                "distribution": "log-normal" if self.positive else "normal", "source": self.source}
+        out = {"nominal": self.nominal, "sigma": None if np.isnan(self.sigma) else self.sigma,
+               "distribution": self.distribution, "source": self.source}
+        return out if self.kind == SPREAD else {**out, "range": [self.low, self.high]}
 
 
 def read_standard_errors(path: str | Path) -> dict[str, tuple[float, str]]:
@@ -101,12 +137,36 @@ def read_standard_errors(path: str | Path) -> dict[str, tuple[float, str]]:
     return out
 
 
+def fold_draws(params: DriveParameters, joint: str) -> list[Uncertain]:
+    """How ``joint``'s drive train is drawn from the file's fold sets (see the module's notes): the
+    set choice ``drive_train.<joint>``, then each parameter of ``[uncertainty.ranges.<joint>]``
+    uniform (log-uniform over a decade or more) in its range, by name."""
+    count = len(params.uncertainty.folds[joint])
+    own = params.drive_train[joint]
+    out = [Uncertain(f"drive_train.{joint}", float(count), np.nan, False, f"fold sets ({count}) and the own set",
+                     0.0, float(count), CHOICE)]
+    for name, (lo, hi) in sorted(params.uncertainty.ranges.get(joint, {}).items()):
+        kind = LOG_UNIFORM if lo > 0 and hi / lo >= DECADE else UNIFORM
+        out.append(Uncertain(f"drive_train.{joint}.{name}", float(getattr(own, name)), np.nan, lo > 0,
+                             f"[uncertainty.ranges.{joint}]", float(lo), float(hi), kind))
+    return out
+
+
 def uncertain_parameters(params: DriveParameters,
                          standard_errors: dict[str, tuple[float, str]] | None = None) -> tuple[Uncertain, ...]:
     """The uncertain parameters of ``params`` (see the module's notes) with their spreads:
     ``standard_errors`` (:func:`read_standard_errors`) where they name the parameter, else the
-    default relative spread of its kind."""
+    default relative spread of its kind; a joint with fold sets drawn from them (:func:`fold_draws`),
+    any standard errors of its drive train left unused (with a warning)."""
     known = standard_errors or {}
+    folded = [j for j in params.drive_train if params.uncertainty.folds.get(j)]
+    if stray := [j for j in params.uncertainty.folds if params.uncertainty.folds[j] and j not in params.drive_train]:
+        raise RcmKinError(f"{params.source or 'the drive parameters'} has fold sets of the {stray[0]} but no "
+                          f"[drive_train.{stray[0]}]: the fold sets are drawn in place of a drive train",
+                          parameter="params")
+    if unused := sorted(n for n in known if n.partition(".")[2].partition(".")[0] in folded):
+        warn(f"the standard errors of {', '.join(unused)} are not used: the drive trains of "
+             f"{', '.join(folded)} are drawn from the file's fold sets")
 
     def entry(name: str, nominal: float, kind: str, positive: bool = True) -> Uncertain:
         if name in known:
@@ -118,6 +178,9 @@ def uncertain_parameters(params: DriveParameters,
 
     out = []
     for joint, friction in params.drive_train.items():
+        if joint in folded:
+            out += fold_draws(params, joint)
+            continue
         on = terms_of(friction)
         off = {name for term in TERMS if term not in on for name in TERM_PARAMETERS[term]} | set(DISCRETE)
         out += [entry(f"drive_train.{joint}.{name}", value, "drive_train", name not in SIGNED)
@@ -130,18 +193,28 @@ def uncertain_parameters(params: DriveParameters,
     for link, moment in params.gravity_offsets.items():
         out += [entry(f"gravity_offsets.{link}[{k}]", value, "gravity_offsets", positive=False)
                 for k, value in enumerate(moment) if value != 0]
-    return tuple(u for u in out if u.sigma > 0)
+    return tuple(u for u in out if u.kind != SPREAD or u.sigma > 0)
 
 
 def draw(uncertain: tuple[Uncertain, ...], seed: np.random.SeedSequence) -> np.ndarray:
-    """One value per uncertain parameter, from the generator of ``seed`` alone."""
-    z = np.random.default_rng(seed).standard_normal(len(uncertain))
-    nominal = np.array([u.nominal for u in uncertain])
-    sigma = np.array([u.sigma for u in uncertain])
-    positive = np.array([u.positive for u in uncertain], dtype=bool)
-    out = nominal + sigma * z
+    """One value per uncertain parameter, from the generator of ``seed`` alone: a standard normal
+    deviate per spread (all of them first, as when there were only spreads), then a uniform one per
+    range or set choice, each in the order of ``uncertain``."""
+    rng = np.random.default_rng(seed)
+    spread = np.array([u.kind == SPREAD for u in uncertain], dtype=bool)
+    z = rng.standard_normal(int(spread.sum()))
+    nominal = np.array([u.nominal for u in uncertain if u.kind == SPREAD])
+    sigma = np.array([u.sigma for u in uncertain if u.kind == SPREAD])
+    positive = np.array([u.positive for u in uncertain if u.kind == SPREAD], dtype=bool)
+    values = nominal + sigma * z
     log_sd = sigma[positive] / nominal[positive]
-    out[positive] = nominal[positive] * np.exp(log_sd * z[positive])
+    values[positive] = nominal[positive] * np.exp(log_sd * z[positive])
+    if spread.all():
+        return values
+    out = np.empty(len(uncertain))
+    out[spread] = values
+    uniform = [u for u in uncertain if u.kind != SPREAD]
+    out[~spread] = [u.from_unit(x) for u, x in zip(uniform, rng.random(len(uniform)))]
     return out
 
 
@@ -154,13 +227,29 @@ def sample_seeds(seed: int, samples: int) -> list[np.random.SeedSequence]:
     return np.random.SeedSequence(seed).spawn(samples)
 
 
+def chosen_set(params: DriveParameters, joint: str, index: float):
+    """``joint``'s drive train number ``index`` (:data:`CHOICE`): a fold set in the file's order, or
+    (the last index) the file's own set."""
+    folds = params.uncertainty.folds.get(joint, ())
+    k = int(index)
+    if not (k == index and 0 <= k <= len(folds)):
+        raise RcmKinError(f"drive_train.{joint}: set {index!r} is not one of the {len(folds)} fold sets and the own "
+                          "set", parameter="values")
+    return folds[k].friction if k < len(folds) else params.drive_train[joint]
+
+
 def with_values(params: DriveParameters, uncertain: tuple[Uncertain, ...], values) -> DriveParameters:
-    """``params`` with each uncertain parameter set to its value in ``values`` (same order); the
-    smooth constants of a joint whose drive train is drawn derived from it as ``identify`` does."""
-    frictions = {}
+    """``params`` with each uncertain parameter set to its value in ``values`` (same order); a
+    joint's drive train first the chosen set where it is drawn from sets (:func:`chosen_set`), its
+    ranges' values put in it; the smooth constants of a joint whose drive train is drawn derived
+    from it as ``identify`` does."""
+    frictions = {u.name.partition(".")[2]: chosen_set(params, u.name.partition(".")[2], value)
+                 for u, value in zip(uncertain, values) if u.kind == CHOICE}
     offsets = {link: np.array(m, dtype=float) for link, m in params.gravity_offsets.items()}
     for u, value in zip(uncertain, values):
         head, _, rest = u.name.partition(".")
+        if u.kind == CHOICE:
+            continue
         if head == "drive_train":
             joint, name = rest.split(".")
             frictions[joint] = replace(frictions.get(joint, params.drive_train[joint]), **{name: float(value)})
@@ -170,3 +259,23 @@ def with_values(params: DriveParameters, uncertain: tuple[Uncertain, ...], value
         else:
             params = with_joint(params, head, **{rest: float(value)})
     return with_drive_trains(replace(params, gravity_offsets=offsets), frictions)
+
+
+def drive_train_sources(uncertain: tuple[Uncertain, ...]) -> dict[str, str]:
+    """Per joint with a drawn drive train, where its draws come from: ``fold sets (N) and the own
+    set`` (and the ranges drawn in them) or ``spreads (<their sources>)``."""
+    sets, ranges, spreads = {}, {}, {}
+    for u in uncertain:
+        head, _, rest = u.name.partition(".")
+        joint, _, name = rest.partition(".")
+        if head != "drive_train":
+            continue
+        if u.kind == CHOICE:
+            sets[joint] = u.source
+        elif u.kind == SPREAD:
+            spreads.setdefault(joint, set()).add(u.source)
+        else:
+            ranges.setdefault(joint, []).append(name)
+    out = {j: source + (f"; uniform over [uncertainty.ranges]: {', '.join(ranges[j])}" if j in ranges else "")
+           for j, source in sets.items()}
+    return {**out, **{j: f"spreads ({', '.join(sorted(s))})" for j, s in spreads.items()}}

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rcm_kin.robustness.sampling import Uncertain
+from rcm_kin.robustness.sampling import Uncertain, drive_train_sources
 from rcm_kin.robustness.task import SampleOutcome, Study
 from rcm_kin.simulation.loop import AXES
 
@@ -103,7 +103,8 @@ class Robustness:
     def as_dict(self) -> dict:
         return {"samples": self.samples, "seed": self.seed, "experiment": self.experiment,
                 "controllers": {name: c.as_dict() for name, c in self.controllers.items()},
-                "uncertainty": {u.name: u.as_dict() for u in self.uncertain}}
+                "uncertainty": {u.name: u.as_dict() for u in self.uncertain},
+                "drive_train_source": drive_train_sources(self.uncertain)}
 
 
 def controller_robustness(outcomes: list[SampleOutcome], c: int) -> ControllerRobustness:

@@ -43,7 +43,7 @@ def robustness_section(out: Path, samples: int = SAMPLES, duration: float | None
     from rcm_kin.dynamics.drive import load_drive_parameters
     from rcm_kin.robustness.execution import run_in_process, run_robustness
     from rcm_kin.robustness.figures import robustness_figure
-    from rcm_kin.robustness.sampling import uncertain_parameters
+    from rcm_kin.robustness.sampling import SPREAD, uncertain_parameters
     from rcm_kin.robustness.task import Study
 
     params = load_drive_parameters()
@@ -63,8 +63,9 @@ def robustness_section(out: Path, samples: int = SAMPLES, duration: float | None
                          f"{c.firmware_unstable_fraction:.0%}" if c.has_margin else "n/a"])
     header = ["controller", "axis", "max error p5 / median / p95 / worst (deg)", "mean error median (deg)",
               "saturated", "unstable", "400 Hz radius median / worst", "400 Hz linearly unstable"]
-    uncertainty = Table.of([[u.name, f"{u.nominal:.4g}", f"{u.sigma:.3g}", f"{u.sigma / abs(u.nominal):.0%}",
-                             "log-normal" if u.positive else "normal", u.source] for u in result.uncertain],
+    uncertainty = Table.of([[u.name, f"{u.nominal:.4g}"] + ([f"{u.sigma:.3g}", f"{u.sigma / abs(u.nominal):.0%}"]
+                            if u.kind == SPREAD else [f"[{u.low:.4g}, {u.high:.4g}]", "n/a"])
+                            + [u.distribution, u.source] for u in result.uncertain],
                            ["parameter", "nominal", "sigma", "relative", "distribution", "spread from"])
     return RobustnessSection(Table.of(rows, header), uncertainty, relative(figure, out), result.samples, SEED,
                              SETTLED_FROM, tuple(controllers))
