@@ -18,10 +18,10 @@ def test_round_trip(tmp_path):
                          ranges={"roll": {"presliding_force": (0.9, 5.0)}},
                          holding_residuals={"roll": np.array([1.0, -2.5]), "pitch": np.array([3.0])},
                          hull={"roll": (-0.26, 0.35), "pitch": (-0.29, 0.26)},
-                         preloads={"roll": (-0.375, 0.079, 0.157)})
+                         preloads={"roll": (-0.375, 0.079, 0.157)}, discrepancy={"roll": (0.0, 1.25)})
     back = load_drive_parameters(write_parameters(replace(base, uncertainty=u), tmp_path / "u.toml")).uncertainty
     assert back.folds == u.folds and back.ranges == u.ranges and back.hull == u.hull
-    assert back.preloads == {"roll": (-0.375, 0.079, 0.157)}
+    assert back.preloads == {"roll": (-0.375, 0.079, 0.157)} and back.discrepancy == {"roll": (0.0, 1.25)}
     assert {j: v.tolist() for j, v in back.holding_residuals.items()} == {"roll": [1.0, -2.5], "pitch": [3.0]}
 
 
@@ -42,6 +42,7 @@ def test_a_file_without_uncertainty_has_none(tmp_path):
     ('[uncertainty.extra]\nx = 1', "holds the tables hull"),
     ('[uncertainty.preloads]\nroll = [0.2, 1.5]', "outside"),
     ('[uncertainty.preloads]\nroll = []', "list of numbers (fraction of the slip force)"),
+    ('[uncertainty.discrepancy]\nroll = [-0.5]', "outside"),
 ])
 def test_bad_tables_are_one_line_errors(tmp_path, table, needle):
     path = tmp_path / "bad.toml"

@@ -26,6 +26,8 @@ from rcm_kin.identification.bands import (
     prediction_band,
     range_values,
     simulate_members,
+    widened,
+    widening_score,
 )
 from rcm_kin.identification.drive_train import AxisLog, predict_log
 from rcm_kin.identification.file_bands import drive_file_band
@@ -259,3 +261,21 @@ def test_a_left_out_band_uses_nothing_fitted_on_its_log():
     scores = band.scores()
     assert set(scores) >= {"coverage", "final_inside", "end_width_over_travel", "median_fit_percent",
                            "median_final_error_deg", "stick_time_s", "median_stick_time_s"}
+
+
+def test_a_widening_score_is_the_distance_outside_in_median_travels():
+    """A band whose edges sit on its median, the measured angle 0.1 rad above it on the last 30 of 100
+    scored samples: at level 0.8 the 80th-percentile distance outside is 0.1 rad (30 % are out), in
+    units of the median's 0.5 rad travel a score of 0.2; widened by that score the band holds at
+    least 80 % of the samples, by a score of 0 it is unchanged and still misses 30 %."""
+    time = np.arange(100) * 1e-3
+    median = np.linspace(0.0, 0.5, 100)
+    measured = median + np.r_[np.zeros(70), np.full(30, 0.1)]
+    band = band_of(np.vstack([median, median]), AxisLog("x", "roll", 1e-3, np.zeros(100), measured,
+                                                        np.zeros(3)), 0.8)
+    assert band.start == 0 and np.allclose(band.time, time)
+    assert widening_score(band) == pytest.approx(0.1 / 0.5, rel=1e-9)
+    wide = widened(band, [widening_score(band)] * 9)
+    assert wide.widened and wide.coverage >= 0.8 and band.coverage == pytest.approx(0.7)
+    assert widened(band, [0.0] * 9).coverage == pytest.approx(0.7)
+    np.testing.assert_allclose(wide.upper - band.upper, 0.1)

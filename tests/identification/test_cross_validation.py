@@ -77,6 +77,7 @@ def test_a_left_out_band_does_not_move_with_its_own_log(monkeypatch):
     np.testing.assert_array_equal(a.lower, b.lower)
     np.testing.assert_array_equal(a.upper, b.upper)
     assert a.coverage != b.coverage or a.median_fit != b.median_fit
+    assert a.widened and len(first.discrepancy) == 3 and all(d >= 0 for d in first.discrepancy)
     assert [band.name for band in first.cv_bands] == [c.name for c in first.cross_validation]
     assert a.sources["fold_sets"] == 1 + 2 and a.sources["preload"] == 2     # fold + 2 inner sets; 2 other logs
     assert len(first.preloads) == 3 and all(-1.0 <= p <= 1.0 for p in first.preloads)

@@ -11,6 +11,8 @@ Written by the identification and the calibration, read with the rest of the fil
     presliding_force = [0.9, 5.0]       the fit on every log stays as good (SI)
     [uncertainty.preloads]              per joint: the presliding spring's force at each log's first
     roll = [-0.3, 0.1, 0.2]             rest (its best preload), as a fraction of its slip force
+    [uncertainty.discrepancy]           per joint: each log's widening score under its left-out band
+    roll = [0.4, 1.2, 0.1]              (how far it had to widen, in the median's travel)
     [[uncertainty.folds.roll]]          one table per leave-one-log-out fold: the log it left out
     left_out = "roll_step_...csv"       and its drive-train parameters (AxisFriction's keys)
     extra_inertia = 0.7
@@ -33,7 +35,8 @@ from rcm_kin.errors import ParameterFileError
 ANGLE = Range("rad", -np.pi, np.pi)
 RESIDUAL = Range("PWM counts", -255.0, 255.0)
 PRELOAD = Range("fraction of the slip force", -1.0, 1.0)
-PARTS = ("hull", "holding_residuals", "ranges", "folds", "preloads")
+SCORE = Range("median travels", 0.0, 1e3)
+PARTS = ("hull", "holding_residuals", "ranges", "folds", "preloads", "discrepancy")
 
 
 @dataclass(frozen=True)
@@ -56,9 +59,10 @@ class DriveUncertainty:
     holding_residuals: dict[str, np.ndarray] = field(default_factory=dict)
     hull: dict[str, tuple[float, float]] = field(default_factory=dict)
     preloads: dict[str, tuple[float, ...]] = field(default_factory=dict)
+    discrepancy: dict[str, tuple[float, ...]] = field(default_factory=dict)
 
     def __bool__(self) -> bool:
-        return any((self.folds, self.ranges, self.holding_residuals, self.hull, self.preloads))
+        return any((self.folds, self.ranges, self.holding_residuals, self.hull, self.preloads, self.discrepancy))
 
 
 def _error(path, key: str, text: str) -> ParameterFileError:
@@ -73,6 +77,12 @@ def _pair(value, rule: Range, path, key: str) -> tuple[float, float]:
     if lo > hi:
         raise _error(path, key, f"has lo {lo:.6g} above hi {hi:.6g}")
     return lo, hi
+
+
+def _numbers(value, rule: Range, path, part: str, joint: str) -> tuple[float, ...]:
+    if not isinstance(value, list) or not value:
+        raise _error(path, f"{part}.{joint}", f"must be a list of numbers ({rule.unit})")
+    return tuple(rule.check(x, path, f"uncertainty.{part}", joint) for x in value)
 
 
 def _joint_tables(raw, path, part: str, driven) -> dict:
@@ -94,11 +104,9 @@ def parse_uncertainty(path, raw, driven) -> DriveUncertainty:
                                  table="uncertainty", key=None)
     hull = {j: _pair(v, ANGLE, path, f"hull.{j}")
             for j, v in _joint_tables(raw.get("hull", {}), path, "hull", driven).items()}
-    preloads = {}
-    for j, v in _joint_tables(raw.get("preloads", {}), path, "preloads", driven).items():
-        if not isinstance(v, list) or not v:
-            raise _error(path, f"preloads.{j}", f"must be a list of numbers ({PRELOAD.unit})")
-        preloads[j] = tuple(PRELOAD.check(x, path, "uncertainty.preloads", j) for x in v)
+    preloads, discrepancy = ({j: _numbers(v, rule, path, part, j)
+                              for j, v in _joint_tables(raw.get(part, {}), path, part, driven).items()}
+                             for part, rule in (("preloads", PRELOAD), ("discrepancy", SCORE)))
     residuals = {}
     for j, v in _joint_tables(raw.get("holding_residuals", {}), path, "holding_residuals", driven).items():
         if not isinstance(v, list) or not v:
@@ -126,7 +134,7 @@ def parse_uncertainty(path, raw, driven) -> DriveUncertainty:
             values = check_table(entry, DRIVE_TRAIN, path, f"uncertainty.folds.{j}", DRIVE_TRAIN_DEFAULT)
             out.append(FoldSet(left_out, AxisFriction(**values)))
         folds[j] = tuple(out)
-    return DriveUncertainty(folds, ranges, residuals, hull, preloads)
+    return DriveUncertainty(folds, ranges, residuals, hull, preloads, discrepancy)
 
 
 def uncertainty_lines(u: DriveUncertainty) -> list[str]:
@@ -142,6 +150,8 @@ def uncertainty_lines(u: DriveUncertainty) -> list[str]:
         lines += [f"{j} = {numbers(v)}" for j, v in u.holding_residuals.items()]
     if u.preloads:
         lines += ["", "[uncertainty.preloads]"] + [f"{j} = {numbers(v)}" for j, v in u.preloads.items()]
+    if u.discrepancy:
+        lines += ["", "[uncertainty.discrepancy]"] + [f"{j} = {numbers(v)}" for j, v in u.discrepancy.items()]
     for j, table in u.ranges.items():
         lines += ["", f"[uncertainty.ranges.{j}]"] + [f"{n} = {numbers(v)}" for n, v in table.items()]
     for j, sets in u.folds.items():

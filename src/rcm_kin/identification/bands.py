@@ -19,6 +19,13 @@ angles, the median between them, each member counted once. It is a spread of the
 calibrated probability: how often it holds the measured angle is what :class:`PredictionBand`
 measures (``coverage``, ``final_inside``), from the sample before the step of a step log.
 
+The ensemble spans what the parameters and the preload leave open, not what the model class
+misses; that is measured on the logs themselves (conformal calibration): each log's widening score
+(:func:`widening_score`) is how far, in units of the median's travel, its band built without it must
+widen to hold ``level`` of its samples, and a band is widened by the conformal quantile of the
+scores of logs it was not fitted on (:func:`widened`; ``[uncertainty.discrepancy]`` in a drive file,
+:func:`calibrated_bands` in the cross-validation), the logs inside the calibrated poses only.
+
 A record that starts outside the calibrated poses (``[uncertainty.hull]``) is flagged
 ``extrapolated``: the band is not widened (it carries the drive train's uncertainty, not the
 rigid-body model's away from where it was calibrated), so there it is not a confident number.
@@ -40,11 +47,12 @@ from rcm_kin.identification.drive_train import AxisLog, fit_percent, predict_log
 from rcm_kin.identification.log_checks import stick_time
 from rcm_kin.identification.telemetry import step_index
 from rcm_kin.plotting import prediction_figure
-from rcm_kin.statics.holding_band import check_level
+from rcm_kin.statics.holding_band import check_level, conformal_half_width
 
 LEVEL = 0.9          # default band level
 PRELOADS = 9         # presliding preloads evenly over [-1, 1] when the logs' own are not known
 PRELOAD_TOLERANCE = 1e-3   # a log's best preload, to this fraction of the slip force
+MIN_SCALE = np.radians(0.05)   # rad: the travel scale of a widening where the median barely moves
 RANGE_VALUES = 3     # values of each undetermined parameter: its ends and middle
 DECADE = 10.0        # a range with hi / lo at least this is spread geometrically
 WORKERS = 4          # threads simulating the members at most (the kernels release the GIL)
@@ -118,9 +126,14 @@ def best_preloads(friction: AxisFriction, plants, logs,
     (their rest is the loop's) are left out, and so are logs outside the calibrated poses ``hull``
     (:func:`hull_check`): a preload is also a gravity offset (``at_rest``), so there it would
     measure the rigid-body model's error away from its calibration, not the spring. None left: (0,)."""
-    best = [best_preload(friction, p, g) for p, g in zip(plants, logs) if g.law is None
-            and not (hull and hull_check(g, hull, (g.measured.min(), g.measured.max()))[0])]
+    best = [best_preload(friction, p, g) for p, g in zip(plants, logs) if g.law is None and calibrated(g, hull)]
     return tuple(best) or (0.0,)
+
+
+def calibrated(log: AxisLog, hull: dict[str, tuple[float, float]] | None) -> bool:
+    """Whether ``log`` stays inside the calibrated poses ``hull`` (:func:`hull_check` over its
+    measured angles; no hull: every log)."""
+    return not (hull and hull_check(log, hull, (log.measured.min(), log.measured.max()))[0])
 
 
 def simulate_members(members, plant: AxisPlant, log: AxisLog, workers: int | None = None) -> np.ndarray:
@@ -304,3 +317,53 @@ def left_out_band(fold: AxisFriction, inner, plant: AxisPlant, log: AxisLog, oth
     sets = [fold, *inner]
     return prediction_band(sets, plant, log, level, ranges, PRELOADS, hull, folds=len(sets),
                            preload_values=best_preloads(fold, plants, logs, hull))
+
+
+def travel_scale(band: PredictionBand) -> float:
+    """The scale (rad) ``band`` widens in: its median's travel from ``start``, at least :data:`MIN_SCALE`."""
+    return max(abs(float(band.median[-1] - band.median[band.start])), MIN_SCALE)
+
+
+def widening_score(band: PredictionBand) -> float:
+    """How far ``band`` must widen on each side, in :func:`travel_scale` units, to hold ``level`` of
+    its log's measured samples from ``start``: the ``level`` quantile of their distances outside it."""
+    s = slice(band.start, None)
+    outside = np.maximum(np.maximum(band.lower[s] - band.measured[s], band.measured[s] - band.upper[s]), 0.0)
+    return float(np.quantile(outside, band.level)) / travel_scale(band)
+
+
+def widened(band: PredictionBand, scores) -> PredictionBand:
+    """``band`` widened on each side by the conformal quantile of ``scores`` (other logs'
+    :func:`widening_score`, :func:`rcm_kin.statics.holding_band.conformal_half_width`) times its
+    :func:`travel_scale`: what the model class missed on logs the band was not fitted on."""
+    w = conformal_half_width(scores, band.level) * travel_scale(band)
+    return replace(band, lower=band.lower - w, upper=band.upper + w, widened=True)
+
+
+def calibrated_bands(folds, inner, plants, logs, level: float = LEVEL,
+                     ranges: dict[str, tuple[float, float]] | None = None,
+                     hull: dict[str, tuple[float, float]] | None = None) -> tuple[tuple[PredictionBand, ...], tuple]:
+    """Per log ``k``: its :func:`left_out_band` (``folds[k]``, ``inner[k]``: the sets fitted without
+    ``k``, and without ``k`` and each other log ``j`` in log order) widened by the scores of the other
+    logs ``j`` under the bands of their inner sets (fitted without ``k`` and ``j``, the preloads of
+    the rest): nothing of log ``k`` enters its band. Also each log's own score under its left-out
+    band (the drive file's ``[uncertainty.discrepancy]``). Logs outside the calibrated poses ``hull``
+    give no score (there the miss is the rigid-body model's extrapolation: their bands say
+    "extrapolated" instead of widening every band)."""
+    pairs = list(zip(plants, logs))
+    out, own = [], []
+    for k, (plant, log) in enumerate(pairs):
+        others = pairs[:k] + pairs[k + 1:]
+        base = left_out_band(folds[k], inner[k], plant, log, others, level, ranges, hull)
+        scores = []
+        for i, (p, g) in enumerate(others):
+            if not calibrated(g, hull):
+                continue
+            rest = others[:i] + others[i + 1:]
+            loads = best_preloads(inner[k][i], [q for q, _ in rest], [h for _, h in rest], hull)
+            scores.append(widening_score(prediction_band([inner[k][i]], p, g, level, ranges, PRELOADS, hull,
+                                                         preload_values=loads)))
+        out.append(widened(base, scores) if scores else base)
+        if calibrated(log, hull):
+            own.append(widening_score(base))
+    return tuple(out), tuple(own)

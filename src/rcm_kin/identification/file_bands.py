@@ -11,7 +11,7 @@ import numpy as np
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.stick_slip import AxisPlant
 from rcm_kin.errors import RcmKinError
-from rcm_kin.identification.bands import LEVEL, PRELOADS, PredictionBand, prediction_band
+from rcm_kin.identification.bands import LEVEL, PRELOADS, PredictionBand, prediction_band, widened
 from rcm_kin.identification.drive_train import AxisLog, LogCheck
 from rcm_kin.identification.identify import file_record, predict_record
 from rcm_kin.statics.holding_band import check_level
@@ -23,7 +23,8 @@ def drive_file_band(params: DriveParameters, log: AxisLog, plant: AxisPlant, lev
                     preloads: int = PRELOADS) -> PredictionBand:
     """The band of the drive file ``params`` over ``log`` (its ``joint``) on ``plant``: its own
     ``[drive_train.<joint>]`` and its ``[uncertainty]`` folds, ranges, logs' preloads (a step log;
-    without them, and on a closed-loop record, preloads evenly over [-1, 1]) and hull. A file without fold
+    without them, and on a closed-loop record, preloads evenly over [-1, 1]) and hull, widened by
+    its logs' widening scores (``[uncertainty.discrepancy]``, :func:`widened`) where it has them. A file without fold
     sets is a clear error."""
     joint = log.joint
     level = check_level(level)
@@ -32,8 +33,10 @@ def drive_file_band(params: DriveParameters, log: AxisLog, plant: AxisPlant, lev
         raise RcmKinError(f"no leave-one-log-out parameter sets in {params.source}: run rcm-kin identify --cv")
     sets = [s.friction for s in folds] + [params.drive_train[joint]]
     values = params.uncertainty.preloads.get(joint) if log.law is None else None
-    return prediction_band(sets, plant, log, level, params.uncertainty.ranges.get(joint), preloads,
+    band = prediction_band(sets, plant, log, level, params.uncertainty.ranges.get(joint), preloads,
                            params.uncertainty.hull, folds=len(folds), preload_values=values)
+    scores = params.uncertainty.discrepancy.get(joint)
+    return widened(band, scores) if scores else band
 
 
 def predict_band(params: DriveParameters, path, joint: str, level: float = LEVEL,

@@ -22,7 +22,7 @@ from rcm_kin.dynamics.drive_uncertainty import DriveUncertainty, FoldSet
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
 from rcm_kin.dynamics.stick_slip import AxisFriction, AxisPlant, axis_plant
 from rcm_kin.errors import RcmKinError
-from rcm_kin.identification.bands import LEVEL, PredictionBand, best_preloads, left_out_band
+from rcm_kin.identification.bands import LEVEL, PredictionBand, best_preloads, calibrated_bands
 from rcm_kin.identification.cross_validation import fit_with_cv, task_count, undetermined_ranges
 from rcm_kin.identification.drive_train import (
     DEFAULT_TERMS,
@@ -44,7 +44,7 @@ from rcm_kin.model import load_robot
 CLOSED_LOOP_START = 5.0        # s: a closed-loop record starts at the first rest after this
 CLOSED_LOOP_SPAN = 10.0        # s of each closed-loop log used
 GENERATIONS = (100, 100)        # evolutionary search: the fit on all logs, each cross-validation fold
-TERMS = {"roll": ("viscous", "presliding"),                 # per joint: see the note in the README
+TERMS = {"roll": ("presliding", "two_mass"),                # per joint: chosen by leave-one-log-out (docs/findings.md)
          "pitch": ("viscous", "presliding", "stiction")}
 
 @dataclass(frozen=True)
@@ -62,6 +62,7 @@ class JointIdentification:
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)   # undetermined parameters' ranges (SI)
     preloads: tuple[float, ...] = ()    # the logs' best presliding preloads (fractions of F_p, best_preloads)
     cv_bands: tuple[PredictionBand, ...] = ()     # per left-out log (aligned with cross_validation): its band
+    discrepancy: tuple[float, ...] = ()           # per log: its widening score under its left-out band
 
 
 @dataclass(frozen=True)
@@ -91,6 +92,7 @@ class Identification:
                 "ranges": {j: {n: list(v) for n, v in r.ranges.items()} for j, r in self.joints.items()},
                 "constraints": {j: {b.name: b.as_dict(r.friction) for b in r.bounds} for j, r in self.joints.items()},
                 "preloads": {j: list(r.preloads) for j, r in self.joints.items() if r.preloads},
+                "discrepancy": {j: list(r.discrepancy) for j, r in self.joints.items() if r.discrepancy},
                 "cross_validation_band": {j: {b.name: b.scores() for b in r.cv_bands}
                                           for j, r in self.joints.items() if r.cv_bands}}
 
@@ -122,7 +124,7 @@ def identify_joint(joint: str, logs: list[AxisLog], plants: list[AxisPlant], cv:
                    hull: dict | None = None) -> JointIdentification:
     """Fit ``joint``'s drive train on ``logs`` subject to ``bounds`` (:mod:`speed_bounds`; with ``cv``
     cross-validated, leaving one log out, with the inner folds, and each left-out log's 90 % band,
-    :func:`left_out_band`, its poses checked against ``hull``), the fits on ``workers`` processes
+    :func:`calibrated_bands`, its poses checked against ``hull``), the fits on ``workers`` processes
     (:func:`fit_with_cv`); ``progress()`` is called once per finished fit. The presliding preloads
     the logs' first rests show under the fit are its ``preloads``."""
     search = search_for(TERMS.get(joint, DEFAULT_TERMS) if terms is None else terms)
@@ -133,13 +135,11 @@ def identify_joint(joint: str, logs: list[AxisLog], plants: list[AxisPlant], cv:
                  for log, p in zip(logs, plants))
     errors = dict(zip(search.free, map(float, sigma)))
     ranges = undetermined_ranges(friction, plants, logs, [n for n, v in errors.items() if not np.isfinite(v)])
-    pairs = list(zip(plants, logs))
-    bands = tuple(left_out_band(result.folds[k], result.inner[k], *pairs[k], pairs[:k] + pairs[k + 1:], LEVEL,
-                                ranges, hull) for k in range(len(logs))) if cv else ()
+    bands, scores = calibrated_bands(result.folds, result.inner, plants, logs, LEVEL, ranges, hull) if cv else ((), ())
     return JointIdentification(joint, friction, errors,
                                jackknife_errors(result.folds, search.free) if result.folds else {},
                                tuple(log.name for log in logs), fits, result.checks, tuple(bounds), result.folds,
-                               result.inner, ranges, best_preloads(friction, plants, logs, hull), bands)
+                               result.inner, ranges, best_preloads(friction, plants, logs, hull), bands, scores)
 
 
 def identify(paths, params: DriveParameters | None = None, joints=("roll",), cv: bool = False,
@@ -180,7 +180,8 @@ def with_uncertainty(uncertainty: DriveUncertainty, results: dict[str, JointIden
     ranges = {**{j: v for j, v in uncertainty.ranges.items() if j not in results},
               **{j: r.ranges for j, r in results.items() if r.ranges}}
     preloads = {**uncertainty.preloads, **{j: r.preloads for j, r in results.items() if r.preloads}}
-    return replace(uncertainty, folds=folds, ranges=ranges, preloads=preloads)
+    discrepancy = {**uncertainty.discrepancy, **{j: r.discrepancy for j, r in results.items() if r.discrepancy}}
+    return replace(uncertainty, folds=folds, ranges=ranges, preloads=preloads, discrepancy=discrepancy)
 
 
 def _ramp_candidates(entries: list[CatalogEntry]) -> list:
