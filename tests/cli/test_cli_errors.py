@@ -65,7 +65,7 @@ def step_log(path: Path, rows: int = 1200, bad: str | None = None) -> Path:
     ("pwm_sign = -1.0", "pwm_sign = 0.5", "pwm_sign"),
     ("coulomb = 1.0734", 'coulomb = "big"', "coulomb"),
     ("viscous = 0.0", "viscous = true", "viscous"),
-    ("presliding_slope = 4.7", "presliding_slope = 47  #", "presliding_slope"),
+    ("presliding_slope = 5.9", "presliding_slope = 59  #", "presliding_slope"),
     ("roll_link = [0.0, -0.2", "roll_link = [nan, -0.2", "roll_link"),
 ])
 def test_drive_file_values_are_checked_where_read(tmp_path, old, new, key):

@@ -161,8 +161,10 @@ def test_the_element_count_is_a_whole_number_up_to_the_state(elements):
 def test_a_drive_file_with_a_bad_element_count_is_one_line(tmp_path, value, message):
     from rcm_kin.dynamics.drive import DEFAULT_PARAMETERS, load_drive_parameters
 
-    text = DEFAULT_PARAMETERS.read_text().replace("\n[drive_train.roll]\n",
-                                                  f"\n[drive_train.roll]\npresliding_elements = {value}\n", 1)
+    text = DEFAULT_PARAMETERS.read_text()
+    roll = text.index("\n[drive_train.roll]\n")
+    assert "presliding_elements = 1.0" in text[roll:]
+    text = text[:roll] + text[roll:].replace("presliding_elements = 1.0", f"presliding_elements = {value}", 1)
     path = tmp_path / "drive.toml"
     path.write_text(text)
     with pytest.raises(ParameterFileError, match=message) as raised:

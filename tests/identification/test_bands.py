@@ -22,7 +22,6 @@ from rcm_kin.identification.bands import (
     best_preloads,
     check_level,
     ensemble,
-    left_out_band,
     prediction_band,
     range_values,
     simulate_members,
@@ -134,7 +133,7 @@ def test_a_record_outside_the_calibrated_poses_is_extrapolated():
 
 
 def test_a_file_without_fold_sets_names_the_command_that_writes_them():
-    params = load_drive_parameters()
+    params = replace(load_drive_parameters(), uncertainty=DriveUncertainty())
     with pytest.raises(RcmKinError, match=r"^no leave-one-log-out parameter sets in .*psm_drive.toml: run rcm-kin "
                                           r"identify --cv$"):
         drive_file_band(params, step(), pendulum())
@@ -198,7 +197,9 @@ def test_predict_band_refuses_a_level_outside_0_1_in_one_line(tmp_path, capsys, 
 
 
 def test_predict_band_without_folds_is_one_line(tmp_path, capsys):
-    code, out, err = run(capsys, "predict", "psm", step_log(tmp_path / "step.csv"), "--joint", "roll", "--band", "0.9")
+    bare = write_parameters(replace(load_drive_parameters(), uncertainty=DriveUncertainty()), tmp_path / "bare.toml")
+    code, out, err = run(capsys, "predict", "psm", step_log(tmp_path / "step.csv"), "--joint", "roll", "--band", "0.9",
+                         "--params", bare)
     assert code == 2 and err.count("\n") == 1
     assert err.startswith("error: no leave-one-log-out parameter sets in ") and "run rcm-kin identify --cv" in err
 
@@ -232,7 +233,7 @@ def test_a_logs_best_preload_is_the_one_it_was_recorded_with(preload):
     far = replace(step(size=-20.0, samples=1500, pose_pitch=0.3), measured=log.measured)
     hull = {"pitch": (-0.2, 0.2)}
     assert best_preloads(truth, [plant, plant], [log, far], hull) == pytest.approx((preload,), abs=5e-3)
-    assert best_preloads(truth, [plant], [far], hull) == (0.0,)
+    assert best_preloads(truth, [plant], [far], hull) == ()
 
 
 def test_an_ensemble_takes_the_preloads_it_is_given_and_refuses_others():
@@ -240,27 +241,49 @@ def test_an_ensemble_takes_the_preloads_it_is_given_and_refuses_others():
     members = ensemble(sets, None, preload_values=(-0.2, 0.1, 0.3))
     assert [p for _, p in members.members] == pytest.approx([-0.2, 0.1, 0.3] * 2)
     assert members.sources["preload"] == 3
-    for bad in ((), (0.2, 1.5), (float("nan"),)):
+    for bad in ((0.2, 1.5), (float("nan"),)):
         with pytest.raises(RcmKinError, match=r"fractions of the slip force in \[-1, 1\]"):
             ensemble(sets, None, preload_values=bad)
+    none_known = ensemble(sets, None, 5, preload_values=())           # no log showed one: evenly over [-1, 1]
+    assert sorted({p for _, p in none_known.members}) == pytest.approx(np.linspace(-1, 1, 5))
 
 
-def test_a_left_out_band_uses_nothing_fitted_on_its_log():
-    """The left-out band is the band of the fold's and inner sets at the other logs' best preloads:
-    the same as :func:`prediction_band` called with them by hand."""
+def test_a_calibrated_band_scores_only_the_other_logs_under_their_inner_sets(monkeypatch):
+    """``calibrated_bands`` on three logs: band k is built from fold k and its inner sets on log k,
+    then each other log j is scored under inner[k][j] alone (never under fold k or on log k), and
+    the band is widened by those scores; a log outside the calibrated poses is neither scored nor
+    widened, and one without any score left is returned as built."""
+    import rcm_kin.identification.bands as bands
+
     plant = pendulum()
     truth = AxisFriction(viscous=2.0, coulomb=0.05, presliding_stiffness=20.0, presliding_force=0.8)
-    steps = ((step(size=-8.0, samples=600), 0.2), (step(0.2, -6.0, 600), -0.3), (step(-0.1, 9.0, 600), 0.0))
-    logs = [replace(g, measured=predict_log(truth, plant, g, preload=p)) for g, p in steps]
-    fold, inner = replace(truth, viscous=2.2), [replace(truth, viscous=1.8)]
-    band = left_out_band(fold, inner, plant, logs[0], [(plant, logs[1]), (plant, logs[2])], 0.8)
-    by_hand = prediction_band([fold, *inner], plant, logs[0], 0.8,
-                              preload_values=best_preloads(fold, [plant, plant], logs[1:]))
-    np.testing.assert_array_equal(band.lower, by_hand.lower)
-    assert band.members == 2 * 2 and band.sources["fold_sets"] == 2
-    scores = band.scores()
-    assert set(scores) >= {"coverage", "final_inside", "end_width_over_travel", "median_fit_percent",
-                           "median_final_error_deg", "stick_time_s", "median_stick_time_s"}
+    steps = ((step(size=-20.0, samples=600), 0.2), (step(0.2, -18.0, 600), -0.3), (step(-0.1, 22.0, 600), 0.0))
+    logs = [replace(g, name=f"log{k}", measured=predict_log(truth, plant, g, preload=p) + 0.002 * k)
+            for k, (g, p) in enumerate(steps)]
+    folds = [replace(truth, viscous=1.9 + 0.1 * k) for k in range(3)]
+    inner = [[replace(truth, viscous=1.5 + k + 0.1 * j) for j in range(3) if j != k] for k in range(3)]
+    calls, real = [], bands.prediction_band
+
+    def recording(sets, plant, log, *args, **kwargs):
+        calls.append(([s.viscous for s in sets], log.name))
+        return real(sets, plant, log, *args, **kwargs)
+
+    monkeypatch.setattr(bands, "prediction_band", recording)
+    out, own = bands.calibrated_bands(folds, inner, [plant] * 3, logs, 0.9)
+    assert len(calls) == 3 * 3
+    for k in range(3):
+        base, *scored = calls[3 * k: 3 * k + 3]
+        assert base == ([folds[k].viscous] + [s.viscous for s in inner[k]], f"log{k}")
+        others = [j for j in range(3) if j != k]
+        assert scored == [([inner[k][i].viscous], f"log{j}") for i, j in enumerate(others)]
+        assert out[k].widened
+    assert {name for name, _ in own} == {"log0", "log1", "log2"}
+    calls.clear()
+    hull = {"pitch": (-0.2, 0.2)}
+    far = [logs[0], replace(logs[1], pose=np.array([0.2, 0.5, 0.08])),
+           replace(logs[2], pose=np.array([0.0, 0.5, 0.08]))]
+    out, own = bands.calibrated_bands(folds, inner, [plant] * 3, far, 0.9, hull=hull)
+    assert not out[0].widened and out[1].extrapolated and not out[1].widened and [n for n, _ in own] == ["log0"]
 
 
 def test_a_widening_score_is_the_distance_outside_in_median_travels():

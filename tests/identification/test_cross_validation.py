@@ -77,11 +77,17 @@ def test_a_left_out_band_does_not_move_with_its_own_log(monkeypatch):
     np.testing.assert_array_equal(a.lower, b.lower)
     np.testing.assert_array_equal(a.upper, b.upper)
     assert a.coverage != b.coverage or a.median_fit != b.median_fit
-    assert a.widened and len(first.discrepancy) == 3 and all(d >= 0 for d in first.discrepancy)
+    assert a.widened and len(first.discrepancy) == 3 and all(d >= 0 for d in first.discrepancy.values())
     assert [band.name for band in first.cv_bands] == [c.name for c in first.cross_validation]
     assert a.sources["fold_sets"] == 1 + 2 and a.sources["preload"] == 2     # fold + 2 inner sets; 2 other logs
-    assert len(first.preloads) == 3 and all(-1.0 <= p <= 1.0 for p in first.preloads)
+    assert set(first.preloads) <= {"step 0", "step 1", "step 2"}
+    assert all(-1.0 <= p <= 1.0 for p in first.preloads.values())
     payload = module.Identification({"roll": first}, (), module.load_drive_parameters()).as_dict()
     assert set(payload["cross_validation_band"]["roll"]) == {"step 0", "step 1", "step 2"}
-    assert payload["preloads"]["roll"] == list(first.preloads)
-    assert module.with_uncertainty(module.DriveUncertainty(), {"roll": first}).preloads["roll"] == first.preloads
+    assert payload["preloads"]["roll"] == first.preloads and payload["discrepancy"]["roll"] == first.discrepancy
+    written = module.with_uncertainty(module.DriveUncertainty(), {"roll": first})
+    assert written.preloads.get("roll", ()) == tuple(first.preloads.values())
+    assert written.discrepancy["roll"] == tuple(first.discrepancy.values())
+    stale = module.DriveUncertainty(preloads={"roll": (0.5,)}, discrepancy={"roll": (9.0,)}, ranges={"roll": {}})
+    plain = replace(first, folds=(), preloads={}, discrepancy={}, cv_bands=())
+    assert not module.with_uncertainty(stale, {"roll": plain}).discrepancy       # nothing kept of the old model

@@ -15,8 +15,10 @@ def run(capsys, *argv):
 
 
 def test_shipped_roll_drive_train_predicts_every_roll_step_it_was_fitted_on(shared_data, params):
-    """In-sample, the shipped roll model fits each roll-step log above 45 % and ends within 20 %
-    of each measured travel (the left-out figures are in the shipped file's header)."""
+    """In-sample, the shipped roll model fits each roll-step log above 40 % and ends within 25 %
+    of each measured travel (measured 41.0-80.7 % and 1-20 %; the left-out figures are in the
+    shipped file's header). The set before, fitted without the thesis's P-sinusoid bound, was held
+    to 45 % and 20 %: the bound costs the slow steps (docs/findings.md)."""
     from rcm_kin.dynamics.stick_slip import axis_plant
     from rcm_kin.identification.drive_train import axis_log, check_log, predict_log
     from rcm_kin.identification.identify import base_model
@@ -26,8 +28,8 @@ def test_shipped_roll_drive_train_predicts_every_roll_step_it_was_fitted_on(shar
         log = axis_log(path, "roll")
         check = check_log(log.name, log.measured, predict_log(params.drive_train["roll"],
                                                              axis_plant(model, "roll", log.pose), log), log.period)
-        assert check.fit_percent > 45.0, check
-        assert check.travel_error < 0.2, check
+        assert check.fit_percent > 40.0, check
+        assert check.travel_error < 0.25, check
 
 
 def test_predict_contract(shared_data, capsys, tmp_path):
@@ -94,8 +96,9 @@ def test_identify_contract(shared_data, capsys, tmp_path):
     assert loaded["roll"].extra_inertia == pytest.approx(result["parameters"]["roll"]["extra_inertia"], rel=1e-12)
     assert np.mean([c["fit_percent"] for c in result["fits"]["roll"].values()]) > 65.0
     free = set(result["standard_errors"]["roll"]) | set(result["undetermined"]["roll"])
-    assert free == {"extra_inertia", "viscous", "coulomb", "presliding_stiffness", "presliding_slope",
-                    "presliding_force"}        # every free parameter: a finite standard error, or said undetermined
+    assert free == {"extra_inertia", "coulomb", "presliding_stiffness", "presliding_slope", "presliding_force",
+                    "cable_stiffness", "cable_damping", "motor_coulomb", "motor_viscous"}
+    # every free parameter of the roll's terms (presliding, two-mass): a finite standard error, or undetermined
     code, _, err = run(capsys, "identify", "psm", *map(str, steps), "--out", str(out))
     assert code == 2 and "--force" in err and err.count("\n") == 1
 

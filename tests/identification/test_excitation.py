@@ -91,8 +91,10 @@ def test_excite_contract(excited, capsys, tmp_path):
     assert result["condition_number"]["roll"] < result["baseline_condition_number"]["roll"] / 10
     errors = result["standard_errors"]["roll"]
     assert set(errors["regressor"]) == {"inertia", "damping", "coulomb", "gravity_sin", "gravity_cos"}
-    from rcm_kin.identification.drive_train import DEFAULT_TERMS, search_for
-    assert set(errors["stick_slip"]) == set(search_for(DEFAULT_TERMS).free)   # the shipped roll drive train's
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.identification.drive_train import search_for, terms_of
+    shipped = search_for(terms_of(load_drive_parameters().drive_train["roll"])).free
+    assert set(errors["stick_slip"]) == set(shipped)   # the shipped roll drive train's free parameters
     assert all(0 < v < np.inf for v in errors["regressor"].values())
     # the same design (same seed) as the first joint of the two-joint file
     from rcm_kin.identification.telemetry import load_telemetry

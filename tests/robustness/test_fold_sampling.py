@@ -41,7 +41,7 @@ def shipped():
 
 def fold_sets(own: AxisFriction) -> tuple[FoldSet, ...]:
     """Three sets as far apart as leave-one-log-out folds are, each unlike the own set."""
-    return tuple(FoldSet(f"log_{k}.csv", replace(own, viscous=own.viscous * (0.7 + 0.2 * k),
+    return tuple(FoldSet(f"log_{k}.csv", replace(own, cable_damping=own.cable_damping * (0.7 + 0.2 * k),
                                                   coulomb=own.coulomb * (1.3 - 0.25 * k),
                                                   presliding_force=own.presliding_force * (0.8 + 0.3 * k)))
                  for k in range(3))
@@ -55,8 +55,22 @@ def folded(shipped, tmp_path_factory):
                                                   tmp_path_factory.mktemp("folds") / "folded.toml"))
 
 
+FACTORS = {"cable_damping": lambda k: 0.7 + 0.2 * k, "coulomb": lambda k: 1.3 - 0.25 * k,
+           "presliding_force": lambda k: 0.8 + 0.3 * k}
+
+
 def candidates(params) -> list[AxisFriction]:
-    return [s.friction for s in params.uncertainty.folds["roll"]] + [params.drive_train["roll"]]
+    """The sets a sample may take: each fold set jackknife-inflated by hand (its factor's logarithm
+    about their mean, times sqrt(3 - 1), on the own value), and the own set."""
+    own = params.drive_train["roll"]
+    out = []
+    for k in range(3):
+        values = {}
+        for name, factor in FACTORS.items():
+            logs = np.log([factor(j) for j in range(3)])
+            values[name] = getattr(own, name) * float(np.exp(np.sqrt(2.0) * (logs[k] - logs.mean())))
+        out.append(replace(own, **values))
+    return out + [own]
 
 
 def test_each_sample_takes_one_of_the_sets_whole(folded):
@@ -70,15 +84,16 @@ def test_each_sample_takes_one_of_the_sets_whole(folded):
     for seed in sample_seeds(SEED, 40):
         drawn = with_values(folded, uncertain, draw(uncertain, seed))
         roll = drawn.drive_train["roll"]
-        matches = [k for k, s in enumerate(sets) if roll == s]
-        assert len(matches) == 1                                            # exactly one set, unchanged
+        matches = [k for k, s in enumerate(sets)
+                   if all(np.isclose(getattr(roll, n), getattr(s, n), rtol=1e-12, atol=0) for n in roll.as_dict())]
+        assert len(matches) == 1                                            # exactly one set
         seen.append(matches[0])
         # the smooth model follows the set as identify derives it (extra inertia, viscous, sliding force)
         assert (drawn["roll"].extra_inertia, drawn["roll"].viscous, drawn["roll"].coulomb) == (
             roll.extra_inertia, roll.viscous + roll.motor_viscous,
             roll.coulomb + roll.motor_coulomb + roll.presliding_force)
     assert sorted(set(seen)) == [0, 1, 2, 3]                                # every fold set and the own set
-    assert drive_train_sources(uncertain) == {"roll": "fold sets (3) and the own set"}
+    assert drive_train_sources(uncertain) == {"roll": "fold sets (3, jackknife-inflated) and the own set"}
     nominal = with_values(folded, uncertain, [u.nominal for u in uncertain])
     assert nominal.drive_train == folded.drive_train                        # the nominal choice is the own set
 
@@ -107,7 +122,8 @@ def test_ranges_are_drawn_uniformly_in_the_chosen_set(folded):
         for name, (lo, hi) in RANGES.items():
             assert lo <= getattr(roll, name) <= hi
             drawn[name].append(getattr(roll, name))
-        assert any(replace(s, **{n: getattr(roll, n) for n in RANGES}) == roll for s in sets)   # the rest one set's
+        assert any(all(np.isclose(getattr(replace(s, **{n: getattr(roll, n) for n in RANGES}), n), getattr(roll, n),
+                              rtol=1e-12, atol=0) for n in roll.as_dict()) for s in sets)   # the rest one set's
     lo, hi = RANGES["presliding_force"]
     assert stats.kstest(drawn["presliding_force"], stats.uniform(lo, hi - lo).cdf).pvalue > 1e-3
     lo, hi = np.log(RANGES["stribeck_velocity"])
@@ -132,11 +148,11 @@ def test_without_fold_sets_the_draws_are_as_before(shipped):
     plain = replace(shipped, uncertainty=DriveUncertainty())
     ranged = replace(shipped, uncertainty=DriveUncertainty(ranges={"roll": RANGES}))   # ranges alone: unused
     uncertain = uncertain_parameters(plain)
-    assert uncertain == uncertain_parameters(shipped) == uncertain_parameters(ranged)
+    assert uncertain == uncertain_parameters(ranged)
     assert all(u.kind != CHOICE and np.isfinite(u.sigma) for u in uncertain)
     roll = shipped.drive_train["roll"]
-    assert {u.name: u.sigma for u in uncertain}["drive_train.roll.viscous"] == \
-        DEFAULT_RELATIVE_SPREAD["drive_train"] * roll.viscous
+    assert {u.name: u.sigma for u in uncertain}["drive_train.roll.coulomb"] == \
+        DEFAULT_RELATIVE_SPREAD["drive_train"] * roll.coulomb
     for seed in sample_seeds(SEED, 50):
         assert draw(uncertain, seed).tobytes() == old_draw(uncertain, seed).tobytes()     # bit for bit
     assert drive_train_sources(uncertain) == {"roll": "spreads (default drive_train 0.25)"}
@@ -155,7 +171,21 @@ def test_the_cli_says_where_the_drive_trains_came_from(folded, capsys):
     assert main(["robustness", "psm", "--controller", "p", "--experiment", "sine", "--samples", "2",
                  "--duration", "0.25", "--workers", "1", "--params", folded.source, "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert out["drive_train_source"] == {"roll": "fold sets (3) and the own set"}
+    assert out["drive_train_source"] == {"roll": "fold sets (3, jackknife-inflated) and the own set"}
     choice = out["uncertainty"]["drive_train.roll"]
     assert (choice["distribution"], choice["sigma"], choice["range"], choice["nominal"]) == (
         "one of the sets", None, [0.0, 3.0], 3.0)
+
+
+def test_the_drawn_sets_spread_as_the_jackknife_errors(folded):
+    """Over the inflated fold sets, each parameter's logarithm spreads (population standard deviation)
+    as the jackknife standard error of the folds, sqrt((n - 1) / n sum (x_k - mean)^2), computed here
+    from the fold sets as written; the raw folds spread sqrt(n - 1) times less."""
+    sets = candidates(folded)[:3]
+    for name in FACTORS:
+        folds = np.log([getattr(f.friction, name) for f in folded.uncertainty.folds["roll"]])
+        jackknife = np.sqrt((folds.size - 1) / folds.size * np.sum((folds - folds.mean()) ** 2))
+        drawn = np.log([getattr(s, name) for s in sets])
+        assert np.std(drawn) == pytest.approx(jackknife, rel=1e-9)
+        assert np.std(folds) == pytest.approx(jackknife / np.sqrt(2.0), rel=1e-9)
+

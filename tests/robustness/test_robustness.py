@@ -12,6 +12,7 @@ import subprocess
 import sys
 import threading
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -45,12 +46,17 @@ ARGS = ["robustness", "psm", "--controller", "p", "--controller", "scheduled", "
 
 @pytest.fixture(scope="module")
 def params():
-    return load_drive_parameters()
+    """The shipped set without its fold sets: every uncertain parameter drawn from its spread (the
+    fold-set draws: tests/robustness/test_fold_sampling.py)."""
+    shipped = load_drive_parameters()
+    return replace(shipped, uncertainty=replace(shipped.uncertainty, folds={}))
 
 
 @pytest.fixture(scope="module")
-def study(params):
-    return Study(params, uncertain_parameters(params), CONTROLLERS, "sine", DURATION)
+def study():
+    """The study the CLI runs by default: the shipped file, its roll drawn from its fold sets."""
+    shipped = load_drive_parameters()
+    return Study(shipped, uncertain_parameters(shipped), CONTROLLERS, "sine", DURATION)
 
 
 @pytest.fixture(scope="module")
@@ -87,11 +93,11 @@ def test_draws_follow_the_stated_distributions(params):
 def test_uncertain_parameters_of_the_shipped_set(params):
     uncertain = {u.name: u for u in uncertain_parameters(params)}
     roll = params.drive_train["roll"]
-    assert uncertain["drive_train.roll.viscous"].sigma == pytest.approx(
-        DEFAULT_RELATIVE_SPREAD["drive_train"] * roll.viscous, rel=1e-12)
+    assert uncertain["drive_train.roll.motor_viscous"].sigma == pytest.approx(
+        DEFAULT_RELATIVE_SPREAD["drive_train"] * roll.motor_viscous, rel=1e-12)
     assert not uncertain["drive_train.roll.presliding_slope"].positive
     assert "drive_train.roll.stribeck_velocity" not in uncertain      # stiction is off: its velocity does nothing
-    assert "drive_train.roll.cable_stiffness" not in uncertain        # 0: no scale
+    assert "drive_train.roll.viscous" not in uncertain                # 0: no scale
     assert "roll.coulomb" not in uncertain                             # follows the drive train
     pitch = params["pitch"].coulomb
     assert uncertain["pitch.coulomb"].sigma == pytest.approx(DEFAULT_RELATIVE_SPREAD["friction"] * pitch, rel=1e-12)
@@ -113,18 +119,19 @@ def test_drawn_drive_train_moves_the_smooth_constants(params):
     drawn = with_values(params, uncertain, values)
     roll = params.drive_train["roll"]
     assert drawn.drive_train["roll"].presliding_force == 2 * roll.presliding_force
-    assert drawn["roll"].coulomb == pytest.approx(roll.coulomb + 2 * roll.presliding_force, rel=1e-12)
+    assert drawn["roll"].coulomb == pytest.approx(roll.coulomb + roll.motor_coulomb + 2 * roll.presliding_force,
+                                                  rel=1e-12)
 
 
 def test_standard_errors_from_identify_output(tmp_path, params):
     path = tmp_path / "identify.json"
-    path.write_text(json.dumps({"standard_errors": {"roll": {"viscous": 0.08, "presliding_force": None}},
-                                "jackknife_standard_errors": {"roll": {"viscous": 1.3, "presliding_force": 0.58}}}))
+    path.write_text(json.dumps({"standard_errors": {"roll": {"motor_viscous": 0.08, "presliding_force": None}},
+                                "jackknife_standard_errors": {"roll": {"motor_viscous": 1.3, "presliding_force": 0.58}}}))
     errors = read_standard_errors(path)
-    assert errors == {"drive_train.roll.viscous": (1.3, "jackknife"),
+    assert errors == {"drive_train.roll.motor_viscous": (1.3, "jackknife"),
                       "drive_train.roll.presliding_force": (0.58, "jackknife")}
     uncertain = {u.name: u for u in uncertain_parameters(params, errors)}
-    assert (uncertain["drive_train.roll.viscous"].sigma, uncertain["drive_train.roll.viscous"].source) == \
+    assert (uncertain["drive_train.roll.motor_viscous"].sigma, uncertain["drive_train.roll.motor_viscous"].source) == \
         (1.3, "jackknife")
     assert uncertain["drive_train.roll.coulomb"].source.startswith("default")
     path.write_text(json.dumps({"standard_errors": {"roll": {"viscous": 0.08}}, "jackknife_standard_errors": {}}))
@@ -540,7 +547,7 @@ def test_report_section(shared_cluster, tmp_path):
         _wait_for_workers(client, 2)
         s = robustness_section(tmp_path, samples=2, duration=0.75, controllers=CONTROLLERS, client=client)
     assert [row[:2] for row in s.table.rows] == [(c, a) for c in CONTROLLERS for a in ("roll", "pitch")]
-    assert any(row[0] == "drive_train.roll.viscous" for row in s.uncertainty.rows)
+    assert any(row[0] == "drive_train.roll" for row in s.uncertainty.rows)    # the shipped file's fold sets
     html = render_section(s)
     assert f'src="{s.figure}"' in html and s.figure == "robustness/robustness_sine.png"
     assert (tmp_path / s.figure).stat().st_size > 0 and str(tmp_path) not in html

@@ -48,8 +48,8 @@ def add_identify(sub) -> None:
     add_params(p, "starting drive parameter TOML (default: the shipped set)")
     add_json(p, '{"parameters", "standard_errors", "jackknife_standard_errors", "undetermined", "logs", "fits", '
                 '"cross_validation", "skipped", "written", "notes", "folds", "ranges", "constraints", "preloads", '
-                '"cross_validation_band": {joint: {log: {"coverage", "final_inside", "end_width_over_travel", '
-                '"median_fit_percent", ...}}}}')
+                '"discrepancy", "cross_validation_band": {joint: {log: {"coverage", "final_inside", '
+                '"end_width_over_travel", "median_fit_percent", ...}}}}')
     p.set_defaults(func=cmd_identify)
 
 

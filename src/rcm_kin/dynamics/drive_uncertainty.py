@@ -9,10 +9,11 @@ Written by the identification and the calibration, read with the rest of the fil
     roll = [1.2, -0.4, ...]             (measured minus predicted, each hold left out of its fit)
     [uncertainty.ranges.roll]           parameters the logs do not determine: the range over which
     presliding_force = [0.9, 5.0]       the fit on every log stays as good (SI)
-    [uncertainty.preloads]              per joint: the presliding spring's force at each log's first
-    roll = [-0.3, 0.1, 0.2]             rest (its best preload), as a fraction of its slip force
-    [uncertainty.discrepancy]           per joint: each log's widening score under its left-out band
-    roll = [0.4, 1.2, 0.1]              (how far it had to widen, in the median's travel)
+    [uncertainty.preloads]              per joint: the presliding spring's force at the first rest of
+    roll = [-0.3, 0.1, 0.2]             each step log inside the calibrated poses that shows it (its
+                                        best preload), as a fraction of its slip force
+    [uncertainty.discrepancy]           per joint: each such log's widening score under its left-out
+    roll = [0.4, 1.2, 0.1]              band (how far it had to widen, in the median's travel)
     [[uncertainty.folds.roll]]          one table per leave-one-log-out fold: the log it left out
     left_out = "roll_step_...csv"       and its drive-train parameters (AxisFriction's keys)
     extra_inertia = 0.7
@@ -35,7 +36,7 @@ from rcm_kin.errors import ParameterFileError
 ANGLE = Range("rad", -np.pi, np.pi)
 RESIDUAL = Range("PWM counts", -255.0, 255.0)
 PRELOAD = Range("fraction of the slip force", -1.0, 1.0)
-SCORE = Range("median travels", 0.0, 1e3)
+SCORE = Range("median travels", 0.0, 1e9)
 PARTS = ("hull", "holding_residuals", "ranges", "folds", "preloads", "discrepancy")
 
 

@@ -53,6 +53,9 @@ LEVEL = 0.9          # default band level
 PRELOADS = 9         # presliding preloads evenly over [-1, 1] when the logs' own are not known
 PRELOAD_TOLERANCE = 1e-3   # a log's best preload, to this fraction of the slip force
 MIN_SCALE = np.radians(0.05)   # rad: the travel scale of a widening where the median barely moves
+HULL_TOLERANCE = np.radians(0.1)   # rad: a pose this close to the calibrated hull is inside it (the holds'
+                                   # poses are the logs' own, to the encoder: roll 0.009 deg a count)
+FLAT = 1e-6          # a preload whose cost varies less than this (relative) over [-1, 1] does not show
 RANGE_VALUES = 3     # values of each undetermined parameter: its ends and middle
 DECADE = 10.0        # a range with hi / lo at least this is spread geometrically
 WORKERS = 4          # threads simulating the members at most (the kernels release the GIL)
@@ -80,7 +83,7 @@ def ensemble(sets, ranges: dict[str, tuple[float, float]] | None = None, preload
              folds: int | None = None, preload_values=None) -> Ensemble:
     """Every parameter set of ``sets`` with each parameter of ``ranges`` (name: (lo, hi), SI) at
     :func:`range_values`, at the presliding preloads ``preload_values`` (fractions of the slip force in
-    [-1, 1], e.g. :func:`best_preloads`) or, without them, at ``preloads`` preloads evenly over
+    [-1, 1], e.g. :func:`best_preloads`) or, without them (None or empty), at ``preloads`` preloads evenly over
     [-1, 1] (1: the relaxed rest only). ``folds``: how many of ``sets`` are fold sets (the rest the
     file's own); None: all of them."""
     sets = list(sets)
@@ -93,11 +96,11 @@ def ensemble(sets, ranges: dict[str, tuple[float, float]] | None = None, preload
     variants = [dict()]
     for name, vs in values.items():
         variants = [{**v, name: x} for v in variants for x in vs]
-    if preload_values is None:
+    if preload_values is None or len(preload_values) == 0:
         loads = np.linspace(-1.0, 1.0, preloads) if preloads > 1 else np.zeros(1)
     else:
         loads = np.asarray(preload_values, dtype=float).ravel()
-        if loads.size == 0 or not np.all((loads >= -1.0) & (loads <= 1.0)):
+        if not np.all((loads >= -1.0) & (loads <= 1.0)):
             raise RcmKinError("presliding preloads are fractions of the slip force in [-1, 1], got "
                               f"{preload_values!r}"[:200], parameter="preload_values")
     members = tuple((replace(s, **v), float(p)) for s in sets for v in variants for p in loads)
@@ -109,14 +112,18 @@ def ensemble(sets, ranges: dict[str, tuple[float, float]] | None = None, preload
 
 def best_preload(friction: AxisFriction, plant: AxisPlant, log: AxisLog) -> float:
     """The preload (fraction of the slip force, in [-1, 1]) under which ``friction`` predicts
-    ``log`` best (least squares from the sample before the step; bounded scalar search)."""
+    ``log`` best (least squares from the sample before the step; bounded scalar search), or NaN
+    where the log does not show it (the cost flat within :data:`FLAT` over -1, 0, 1 and the
+    optimum: a spring that only deflects moves the same from any preload, its force and the
+    gravity's shift cancelling)."""
     start = scored_from(log)
 
     def cost(p: float) -> float:
         return float(np.sum((predict_log(friction, plant, log, preload=p)[start:] - log.measured[start:]) ** 2))
 
-    return float(minimize_scalar(cost, bounds=(-1.0, 1.0), method="bounded",
-                                 options={"xatol": PRELOAD_TOLERANCE}).x)
+    best = float(minimize_scalar(cost, bounds=(-1.0, 1.0), method="bounded", options={"xatol": PRELOAD_TOLERANCE}).x)
+    costs = [cost(p) for p in (-1.0, 0.0, 1.0, best)]
+    return float("nan") if max(costs) - min(costs) <= FLAT * max(costs) else best
 
 
 def best_preloads(friction: AxisFriction, plants, logs,
@@ -125,9 +132,17 @@ def best_preloads(friction: AxisFriction, plants, logs,
     the spring's state at a first rest was, as the logs show it. Closed-loop records
     (their rest is the loop's) are left out, and so are logs outside the calibrated poses ``hull``
     (:func:`hull_check`): a preload is also a gravity offset (``at_rest``), so there it would
-    measure the rigid-body model's error away from its calibration, not the spring. None left: (0,)."""
-    best = [best_preload(friction, p, g) for p, g in zip(plants, logs) if g.law is None and calibrated(g, hull)]
-    return tuple(best) or (0.0,)
+    measure the rigid-body model's error away from its calibration, not the spring; so are logs that
+    do not show a preload (:func:`best_preload` NaN). None left: ``()`` (an :func:`ensemble` given
+    no values spreads its preloads evenly over [-1, 1])."""
+    return tuple(named_preloads(friction, plants, logs, hull).values())
+
+
+def named_preloads(friction: AxisFriction, plants, logs,
+                   hull: dict[str, tuple[float, float]] | None = None) -> dict[str, float]:
+    """:func:`best_preloads` by log name."""
+    best = {g.name: best_preload(friction, p, g) for p, g in zip(plants, logs) if g.law is None and calibrated(g, hull)}
+    return {n: b for n, b in best.items() if np.isfinite(b)}
 
 
 def calibrated(log: AxisLog, hull: dict[str, tuple[float, float]] | None) -> bool:
@@ -229,7 +244,7 @@ class PredictionBand:
                 "median_final_error_deg": float(np.degrees(self.median[-1] - self.measured[-1])),
                 "travel_deg": float(np.degrees(self.travel)), "stick_time_s": stick_time(self.measured, period),
                 "median_stick_time_s": stick_time(self.median, period), "members": self.members,
-                "extrapolated": self.extrapolated}
+                "extrapolated": self.extrapolated, "widened": self.widened, "note": self.note}
 
     def as_dict(self) -> dict:
         """The band in degrees, its scores and sources (the ``predict --band`` JSON's ``band``)."""
@@ -266,13 +281,14 @@ def hull_check(log: AxisLog, hull: dict[str, tuple[float, float]] | None,
             continue
         lo, hi = hull[joint]
         a, b = reach if joint == log.joint else (log.pose[k], log.pose[k])
-        if a < lo or b > hi:
+        if a < lo - HULL_TOLERANCE or b > hi + HULL_TOLERANCE:
             at = f"{np.degrees(a):.2f}..{np.degrees(b):.2f}" if a != b else f"{np.degrees(a):.2f}"
             outside.append(f"{joint} {at} deg outside the calibrated {np.degrees(lo):.1f}..{np.degrees(hi):.1f} deg")
     if not outside:
         return False, ""
     return True, ("; ".join(outside) + ": extrapolated, the band not widened (it carries the drive train's "
-                  "uncertainty, not the rigid-body model's outside its calibration)")
+                  "uncertainty and what the model missed inside its calibration, not the rigid-body model's "
+                  "error outside it)")
 
 
 def band_of(trajectories: np.ndarray, log: AxisLog, level: float = LEVEL, sources: dict[str, int] | None = None,
@@ -315,8 +331,8 @@ def left_out_band(fold: AxisFriction, inner, plant: AxisPlant, log: AxisLog, oth
     and the undetermined ``ranges``: nothing in it was fitted on ``log``."""
     plants, logs = zip(*others) if others else ((), ())
     sets = [fold, *inner]
-    return prediction_band(sets, plant, log, level, ranges, PRELOADS, hull, folds=len(sets),
-                           preload_values=best_preloads(fold, plants, logs, hull))
+    loads = best_preloads(fold, plants, logs, hull) if log.law is None else None    # a loop's rest is its own
+    return prediction_band(sets, plant, log, level, ranges, PRELOADS, hull, folds=len(sets), preload_values=loads)
 
 
 def travel_scale(band: PredictionBand) -> float:
@@ -347,9 +363,12 @@ def calibrated_bands(folds, inner, plants, logs, level: float = LEVEL,
     ``k``, and without ``k`` and each other log ``j`` in log order) widened by the scores of the other
     logs ``j`` under the bands of their inner sets (fitted without ``k`` and ``j``, the preloads of
     the rest): nothing of log ``k`` enters its band. Also each log's own score under its left-out
-    band (the drive file's ``[uncertainty.discrepancy]``). Logs outside the calibrated poses ``hull``
-    give no score (there the miss is the rigid-body model's extrapolation: their bands say
-    "extrapolated" instead of widening every band)."""
+    band, by log name (the drive file's ``[uncertainty.discrepancy]``). Logs outside the calibrated
+    poses ``hull`` give no score and are not widened (there the miss is the rigid-body model's
+    extrapolation: their bands say "extrapolated" instead), nor do closed-loop records (their rests
+    are the loop's). The calibration is not fully left-out: an inner set is polished from the fold's
+    (:mod:`rcm_kin.identification.cross_validation`), which saw ``j``, so its score leans low; and
+    ``j`` is scored under its one inner set, ``k`` under the fold's and every inner set."""
     pairs = list(zip(plants, logs))
     out, own = [], []
     for k, (plant, log) in enumerate(pairs):
@@ -357,13 +376,13 @@ def calibrated_bands(folds, inner, plants, logs, level: float = LEVEL,
         base = left_out_band(folds[k], inner[k], plant, log, others, level, ranges, hull)
         scores = []
         for i, (p, g) in enumerate(others):
-            if not calibrated(g, hull):
+            if g.law is not None or not calibrated(g, hull):
                 continue
             rest = others[:i] + others[i + 1:]
             loads = best_preloads(inner[k][i], [q for q, _ in rest], [h for _, h in rest], hull)
             scores.append(widening_score(prediction_band([inner[k][i]], p, g, level, ranges, PRELOADS, hull,
                                                          preload_values=loads)))
-        out.append(widened(base, scores) if scores else base)
-        if calibrated(log, hull):
-            own.append(widening_score(base))
+        out.append(widened(base, scores) if scores and not base.extrapolated else base)
+        if log.law is None and calibrated(log, hull):
+            own.append((log.name, widening_score(base)))
     return tuple(out), tuple(own)

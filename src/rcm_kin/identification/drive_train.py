@@ -181,7 +181,7 @@ def at_rest(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float,
     carries ``preload`` F_p of the holding torque, the state a previous approach left, and the
     gravity is shifted by that much less: the rest stays a static equilibrium (the spring's force
     and the shifted gravity balance the motor torque), so the preload is also a statement about the
-    gravity at the rest, which the holding calibration bounds (:func:`rcm_kin.identification.bands.spring_loads`)."""
+    gravity at the rest (which the holding calibration bounds only to its band; not enforced here)."""
     if not -1.0 <= preload <= 1.0:
         raise RcmKinError(f"the presliding preload is a fraction of the slip force in [-1, 1], got {preload!r}",
                           parameter="preload")

@@ -24,7 +24,8 @@ def drive_file_band(params: DriveParameters, log: AxisLog, plant: AxisPlant, lev
     """The band of the drive file ``params`` over ``log`` (its ``joint``) on ``plant``: its own
     ``[drive_train.<joint>]`` and its ``[uncertainty]`` folds, ranges, logs' preloads (a step log;
     without them, and on a closed-loop record, preloads evenly over [-1, 1]) and hull, widened by
-    its logs' widening scores (``[uncertainty.discrepancy]``, :func:`widened`) where it has them. A file without fold
+    its logs' widening scores (``[uncertainty.discrepancy]``, :func:`widened`) where it has them
+    (a step log inside the calibrated poses). A file without fold
     sets is a clear error."""
     joint = log.joint
     level = check_level(level)
@@ -36,7 +37,7 @@ def drive_file_band(params: DriveParameters, log: AxisLog, plant: AxisPlant, lev
     band = prediction_band(sets, plant, log, level, params.uncertainty.ranges.get(joint), preloads,
                            params.uncertainty.hull, folds=len(folds), preload_values=values)
     scores = params.uncertainty.discrepancy.get(joint)
-    return widened(band, scores) if scores else band
+    return widened(band, scores) if scores and log.law is None and not band.extrapolated else band
 
 
 def predict_band(params: DriveParameters, path, joint: str, level: float = LEVEL,

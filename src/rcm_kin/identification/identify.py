@@ -22,7 +22,7 @@ from rcm_kin.dynamics.drive_uncertainty import DriveUncertainty, FoldSet
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
 from rcm_kin.dynamics.stick_slip import AxisFriction, AxisPlant, axis_plant
 from rcm_kin.errors import RcmKinError
-from rcm_kin.identification.bands import LEVEL, PredictionBand, best_preloads, calibrated_bands
+from rcm_kin.identification.bands import LEVEL, PredictionBand, calibrated_bands, named_preloads
 from rcm_kin.identification.cross_validation import fit_with_cv, task_count, undetermined_ranges
 from rcm_kin.identification.drive_train import (
     DEFAULT_TERMS,
@@ -60,9 +60,9 @@ class JointIdentification:
     folds: tuple[AxisFriction, ...] = ()   # per left-out log (aligned with cross_validation): its fold's fit
     inner_folds: tuple[tuple[AxisFriction, ...], ...] = ()  # per left-out log k: fits on all but k and j, j != k
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)   # undetermined parameters' ranges (SI)
-    preloads: tuple[float, ...] = ()    # the logs' best presliding preloads (fractions of F_p, best_preloads)
+    preloads: dict[str, float] = field(default_factory=dict)   # per step log: its best preload (fraction of F_p)
     cv_bands: tuple[PredictionBand, ...] = ()     # per left-out log (aligned with cross_validation): its band
-    discrepancy: tuple[float, ...] = ()           # per log: its widening score under its left-out band
+    discrepancy: dict[str, float] = field(default_factory=dict)  # per log: its widening score, left out
 
 
 @dataclass(frozen=True)
@@ -91,8 +91,8 @@ class Identification:
                           for j, r in self.joints.items()},
                 "ranges": {j: {n: list(v) for n, v in r.ranges.items()} for j, r in self.joints.items()},
                 "constraints": {j: {b.name: b.as_dict(r.friction) for b in r.bounds} for j, r in self.joints.items()},
-                "preloads": {j: list(r.preloads) for j, r in self.joints.items() if r.preloads},
-                "discrepancy": {j: list(r.discrepancy) for j, r in self.joints.items() if r.discrepancy},
+                "preloads": {j: dict(r.preloads) for j, r in self.joints.items() if r.preloads},
+                "discrepancy": {j: dict(r.discrepancy) for j, r in self.joints.items() if r.discrepancy},
                 "cross_validation_band": {j: {b.name: b.scores() for b in r.cv_bands}
                                           for j, r in self.joints.items() if r.cv_bands}}
 
@@ -139,7 +139,7 @@ def identify_joint(joint: str, logs: list[AxisLog], plants: list[AxisPlant], cv:
     return JointIdentification(joint, friction, errors,
                                jackknife_errors(result.folds, search.free) if result.folds else {},
                                tuple(log.name for log in logs), fits, result.checks, tuple(bounds), result.folds,
-                               result.inner, ranges, best_preloads(friction, plants, logs, hull), bands, scores)
+                               result.inner, ranges, named_preloads(friction, plants, logs, hull), bands, dict(scores))
 
 
 def identify(paths, params: DriveParameters | None = None, joints=("roll",), cv: bool = False,
@@ -173,15 +173,19 @@ def identify(paths, params: DriveParameters | None = None, joints=("roll",), cv:
 
 
 def with_uncertainty(uncertainty: DriveUncertainty, results: dict[str, JointIdentification]) -> DriveUncertainty:
-    """``uncertainty`` (its hull and holding residuals kept) with each identified joint's fold sets
-    (when cross-validated) and its undetermined parameters' ranges in place of any it had."""
-    folds = {**uncertainty.folds, **{j: tuple(FoldSet(c.name, f) for c, f in zip(r.cross_validation, r.folds))
-                                     for j, r in results.items() if r.folds}}
-    ranges = {**{j: v for j, v in uncertainty.ranges.items() if j not in results},
-              **{j: r.ranges for j, r in results.items() if r.ranges}}
-    preloads = {**uncertainty.preloads, **{j: r.preloads for j, r in results.items() if r.preloads}}
-    discrepancy = {**uncertainty.discrepancy, **{j: r.discrepancy for j, r in results.items() if r.discrepancy}}
-    return replace(uncertainty, folds=folds, ranges=ranges, preloads=preloads, discrepancy=discrepancy)
+    """``uncertainty`` (its hull and holding residuals kept) with each identified joint's fold sets,
+    preloads and widening scores (when cross-validated) and its undetermined parameters' ranges in
+    place of any it had: an identified joint keeps nothing of the starting file's (a new drive train
+    with the old one's folds or scores would be a band of another model)."""
+    def replaced(old: dict, new) -> dict:
+        return {**{j: v for j, v in old.items() if j not in results},
+                **{j: new(r) for j, r in results.items() if new(r)}}
+    return replace(uncertainty,
+                   folds=replaced(uncertainty.folds, lambda r: tuple(FoldSet(c.name, f) for c, f
+                                                                     in zip(r.cross_validation, r.folds))),
+                   ranges=replaced(uncertainty.ranges, lambda r: r.ranges),
+                   preloads=replaced(uncertainty.preloads, lambda r: tuple(r.preloads.values())),
+                   discrepancy=replaced(uncertainty.discrepancy, lambda r: tuple(r.discrepancy.values())))
 
 
 def _ramp_candidates(entries: list[CatalogEntry]) -> list:

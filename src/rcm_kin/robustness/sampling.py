@@ -35,7 +35,11 @@ parameter the logs do not determine (``[uncertainty.ranges.<joint>]``) is then d
 over its range in that set (log-uniformly where the range spans a decade,
 :data:`rcm_kin.identification.bands.DECADE`), named ``drive_train.<joint>.<name>``. The
 per-parameter spreads of that joint's drive train (standard errors or default) are then NOT also
-applied: the fold sets are that spread, measured. Without fold sets the ranges are not used and the
+applied: the fold sets are that spread, measured. A fold set is drawn jackknife-inflated
+(:func:`inflated`): each parameter's deviation from the folds' mean scaled by ``sqrt(n - 1)`` and
+put on the own set's value (on the logarithm for a positive parameter), so the draws spread as the
+jackknife standard errors (the folds, each fitted on all but one of ``n`` logs, spread
+``sqrt(n - 1)`` times less than the estimate's error). Without fold sets the ranges are not used and the
 draws are what they were before fold sets existed. The other parameters (``volts_per_pwm``, the
 first moments, a joint without fold sets) keep their spreads.
 
@@ -143,8 +147,8 @@ def fold_draws(params: DriveParameters, joint: str) -> list[Uncertain]:
     uniform (log-uniform over a decade or more) in its range, by name."""
     count = len(params.uncertainty.folds[joint])
     own = params.drive_train[joint]
-    out = [Uncertain(f"drive_train.{joint}", float(count), np.nan, False, f"fold sets ({count}) and the own set",
-                     0.0, float(count), CHOICE)]
+    out = [Uncertain(f"drive_train.{joint}", float(count), np.nan, False,
+                     f"fold sets ({count}, jackknife-inflated) and the own set", 0.0, float(count), CHOICE)]
     for name, (lo, hi) in sorted(params.uncertainty.ranges.get(joint, {}).items()):
         kind = LOG_UNIFORM if lo > 0 and hi / lo >= DECADE else UNIFORM
         out.append(Uncertain(f"drive_train.{joint}.{name}", float(getattr(own, name)), np.nan, lo > 0,
@@ -235,7 +239,24 @@ def chosen_set(params: DriveParameters, joint: str, index: float):
     if not (k == index and 0 <= k <= len(folds)):
         raise RcmKinError(f"drive_train.{joint}: set {index!r} is not one of the {len(folds)} fold sets and the own "
                           "set", parameter="values")
-    return folds[k].friction if k < len(folds) else params.drive_train[joint]
+    return inflated(folds, params.drive_train[joint], k) if k < len(folds) else params.drive_train[joint]
+
+
+def inflated(folds, own, k: int):
+    """Fold set ``k`` of ``folds`` (:class:`FoldSet`) jackknife-inflated about ``own`` (the file's set):
+    per parameter ``own + sqrt(n - 1) (p_k - mean p)``, on the logarithm when every value is
+    positive; model choices (:data:`DISCRETE`) and parameters equal in every set kept."""
+    n, values = len(folds), {}
+    for name, mine in own.as_dict().items():
+        p = np.array([getattr(f.friction, name) for f in folds], dtype=float)
+        if name in DISCRETE or np.all(p == p[0]) and p[0] == mine:
+            continue
+        scale = np.sqrt(max(n - 1, 1))
+        if mine > 0 and np.all(p > 0):
+            values[name] = float(mine * np.exp(scale * (np.log(p[k]) - np.mean(np.log(p)))))
+        else:
+            values[name] = float(mine + scale * (p[k] - p.mean()))
+    return replace(own, **values)
 
 
 def with_values(params: DriveParameters, uncertain: tuple[Uncertain, ...], values) -> DriveParameters:
