@@ -126,7 +126,8 @@ def test_drawn_drive_train_moves_the_smooth_constants(params):
 def test_standard_errors_from_identify_output(tmp_path, params):
     path = tmp_path / "identify.json"
     path.write_text(json.dumps({"standard_errors": {"roll": {"motor_viscous": 0.08, "presliding_force": None}},
-                                "jackknife_standard_errors": {"roll": {"motor_viscous": 1.3, "presliding_force": 0.58}}}))
+                                "jackknife_standard_errors": {"roll": {"motor_viscous": 1.3,
+                                                                       "presliding_force": 0.58}}}))
     errors = read_standard_errors(path)
     assert errors == {"drive_train.roll.motor_viscous": (1.3, "jackknife"),
                       "drive_train.roll.presliding_force": (0.58, "jackknife")}
