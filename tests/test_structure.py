@@ -18,7 +18,7 @@ PACKAGE = SRC / "rcm_kin"
 
 # lowest first: a module imports only from its own level or below (docs/architecture.md)
 LAYERS = [
-    ("errors",),
+    ("errors", "atomic"),
     ("hardware", "thesis", "firmware_rules"),
     ("symbolic", "parallel"),
     ("csv_native", "csv_table"),

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rcm_kin.atomic import atomic_open
 from rcm_kin.csv_native import native_formatter
 from rcm_kin.errors import RcmKinError
 
@@ -77,7 +78,7 @@ def write_csv_blocks(path: str | Path, header: list[str], blocks: Iterable[np.nd
     columns) to ``path``; only one block's text is in memory at a time."""
     path = Path(path)
     try:
-        with path.open("wb") as fh:
+        with atomic_open(path, "wb") as fh:
             fh.write((",".join(header) + "\r\n").encode())
             for block in blocks:
                 if np.shape(block)[1:] != (len(header),):

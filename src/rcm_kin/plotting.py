@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rcm_kin.atomic import atomic_path
 from rcm_kin.dynamics.drive import DRIVEN
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import FIRMWARE_PERIOD
@@ -33,12 +34,22 @@ def pyplot():
     return plt
 
 
+def figure_format(path: str | Path) -> str:
+    """The image format matplotlib writes ``path`` in: its suffix (``png``, ``svg``, ``pdf``), PNG
+    when it has none. Named when a figure is saved to a temporary path, so that matplotlib neither
+    guesses it from another name nor adds a suffix to the file."""
+    return Path(path).suffix[1:].lower() or "png"
+
+
 def save_figure(fig, path: str | Path) -> Path:
     """Write the figure as a PNG (110 dpi; zlib level 3: a sixth larger than the default 6, the same
     pixels, written in a fraction of the time) and free it."""
     path = Path(path)
     try:
-        fig.savefig(path, dpi=110, pil_kwargs={"compress_level": 3})
+        with atomic_path(path) as temporary:    # the format named: matplotlib would add a suffix to a bare name
+            fig.savefig(temporary, dpi=110, format=figure_format(path), pil_kwargs={"compress_level": 3})
+    except RcmKinError:
+        raise
     except (OSError, ValueError) as exc:
         raise RcmKinError(f"cannot write the figure {path}: {exc}") from None
     finally:

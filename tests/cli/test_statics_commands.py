@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -146,3 +147,16 @@ def test_a_map_of_another_robot_without_grid_names_its_own_joints(capsys):
     code, out, err = run(capsys, "torque-map", "mtm", "--out", "m")
     assert code == 2 and err.count("\n") == 1
     assert "--grid j1=-90:90:61 j2=-90:90:61" in err and "--roll" not in err
+
+
+def test_torque_map_refuses_a_table_linked_out_of_its_folder(capsys, tmp_path):
+    """Before: a link out/torque_map.csv -> ../notes.txt was followed and the notes overwritten."""
+    notes, out = tmp_path / "notes.txt", tmp_path / "out"
+    notes.write_text("my notes\n")
+    out.mkdir()
+    (out / "torque_map.csv").symlink_to(Path("..") / "notes.txt")
+    code, stdout, err = run(capsys, "torque-map", "psm", "--roll", "0:10:2", "--pitch", "0:0:1", "--out", out,
+                            "--no-figures")
+    assert code == 2 and err.count("\n") == 1 and err.startswith("error: ") and "outside its folder" in err
+    assert notes.read_text() == "my notes\n" and (out / "torque_map.csv").is_symlink()
+    assert not stdout

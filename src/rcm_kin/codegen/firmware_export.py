@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rcm_kin.atomic import atomic_open, write_text
 from rcm_kin.control.gain_schedule import GainSchedule
 from rcm_kin.control.stability import StabilitySurvey
 from rcm_kin.errors import RcmKinError
@@ -199,9 +200,9 @@ def write_gain_schedule(schedule: GainSchedule, folder: Path, survey: StabilityS
     files = [folder / "gains.json", folder / "gains.csv", folder / "gain_schedule.h"]
     try:
         text = header_text(schedule, gravity_feedforward, friction_feedforward)
-        files[0].write_text(json.dumps(gains_payload(schedule, survey, gravity_feedforward, friction_feedforward),
-                                       indent=1))
-        with files[1].open("w", newline="") as fh:
+        write_text(files[0], json.dumps(gains_payload(schedule, survey, gravity_feedforward, friction_feedforward),
+                                        indent=1))
+        with atomic_open(files[1], "w", newline="") as fh:
             writer = csv.writer(fh)
             header = ["roll_deg", "pitch_deg", "kp_roll", "kd_roll", "kp_pitch", "kd_pitch", "ki_pitch",
                       "ff_v_pitch", "ff_a_pitch", "u_hold_roll", "u_hold_pitch", "max_real_pole_cl"]
@@ -211,7 +212,7 @@ def write_gain_schedule(schedule: GainSchedule, folder: Path, survey: StabilityS
                     writer.writerow([roll, pitch, *schedule.k_roll[j, i], *schedule.k_pitch[j, i],
                                      *schedule.ff_pitch[j, i], *schedule.u_hold[j, i],
                                      np.linalg.eigvals(schedule.A_cl[j, i]).real.max()])
-        files[2].write_text(text)
+        write_text(files[2], text)
     except OSError as exc:
         raise RcmKinError(f"cannot write the gain schedule into {folder}: {exc.strerror}") from None
     return files

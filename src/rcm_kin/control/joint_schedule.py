@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rcm_kin.atomic import atomic_open, write_text
 from rcm_kin.control.gain_schedule import check_grid, lqr_axis
 from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.weights import Weights
@@ -172,8 +173,8 @@ def write_joint_schedule(schedule: JointSchedule, model: DrivenDynamics, folder:
     folder = output_folder(folder)
     files = [folder / "schedule.json", folder / "schedule.csv"]
     try:
-        files[0].write_text(json.dumps(payload, allow_nan=False, indent=1) + "\n")
-        with files[1].open("w", newline="") as fh:
+        write_text(files[0], json.dumps(payload, allow_nan=False, indent=1) + "\n")
+        with atomic_open(files[1], "w", newline="") as fh:
             writer = csv.writer(fh)
             writer.writerow(header)
             writer.writerows([[f"{v:.9g}" for v in row] for row in rows])

@@ -33,6 +33,7 @@ from typing import Final
 
 import numpy as np
 
+from rcm_kin.atomic import write_text
 from rcm_kin.dynamics.axis_friction import AxisFriction
 from rcm_kin.dynamics.drive_schema import DRIVE_TRAIN, DRIVE_TRAIN_DEFAULT, JOINT_DRIVE, check_offset, check_table
 from rcm_kin.dynamics.drive_uncertainty import DriveUncertainty, parse_uncertainty, uncertainty_lines
@@ -293,7 +294,7 @@ def write_parameters(params: DriveParameters, path: str | Path, header: str = ""
     lines += uncertainty_lines(params.uncertainty)
     path = Path(path)
     try:
-        path.write_text("\n".join(lines) + "\n")
+        write_text(path, "\n".join(lines) + "\n")
     except OSError as exc:
         raise RcmKinError(f"cannot write the parameter file {path}: {exc.strerror}") from None
     return path

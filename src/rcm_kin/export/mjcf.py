@@ -49,6 +49,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from rcm_kin.atomic import atomic_path
 from rcm_kin.dynamics.drive import DriveParameters, model_label, resolve_drive
 from rcm_kin.errors import RcmKinError, RcmKinWarning, warn
 from rcm_kin.export.calibrated import calibrated_inertias
@@ -285,7 +286,8 @@ def write_mjcf(robot: Robot, path: str | Path, params: DriveParameters | str | P
     path = Path(path)
     document = mjcf_tree(robot, params, package_dirs)
     try:
-        document.write(path, encoding="unicode", xml_declaration=False)
+        with atomic_path(path) as temporary:
+            document.write(temporary, encoding="unicode", xml_declaration=False)
     except OSError as exc:
         raise RcmKinError(f"cannot write the MJCF file {path}: {exc.strerror}") from None
     return path

@@ -57,6 +57,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from rcm_kin.atomic import atomic_path
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, load_drive_parameters
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import ENCODER_COUNT, FIRMWARE_PERIOD, PWM_LIMIT
@@ -276,8 +277,9 @@ def write_excitation(excitation: Excitation, path: str | Path) -> Path:
     for k in range(len(JOINTS)):
         columns += [degrees[:, k], excitation.pwm[:, k], degrees[:, k]]
     try:
-        np.savetxt(path, np.column_stack(columns), delimiter=",", header=",".join(header), comments="",
-                   fmt=["%.4f"] + ["%.6f", "%.3f", "%.6f"] * len(JOINTS))
+        with atomic_path(path) as temporary:
+            np.savetxt(temporary, np.column_stack(columns), delimiter=",", header=",".join(header), comments="",
+                       fmt=["%.4f"] + ["%.6f", "%.3f", "%.6f"] * len(JOINTS))
     except OSError as exc:
         raise RcmKinError(f"cannot write {path}: {exc.strerror}") from None
     return path

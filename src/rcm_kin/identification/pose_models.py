@@ -16,6 +16,7 @@ import casadi as ca
 import control
 import numpy as np
 
+from rcm_kin.atomic import atomic_open
 from rcm_kin.control.linearization import check_in_range
 from rcm_kin.dynamics.state_space import DrivenDynamics
 from rcm_kin.errors import RcmKinError
@@ -127,7 +128,7 @@ def _pole_text(poles: np.ndarray) -> str:
 def write_pose_table(models: list[PoseModel], path: str | Path) -> Path:
     rows = pose_table_rows(models)
     path = Path(path)
-    with path.open("w", newline="") as fh:
+    with atomic_open(path, "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(max(rows, key=len)))
         writer.writeheader()
         writer.writerows(rows)

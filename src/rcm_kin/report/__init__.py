@@ -26,6 +26,7 @@ from concurrent.futures import as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
+from rcm_kin.atomic import write_text
 from rcm_kin.errors import RcmKinError, output_folder, recording_warnings, reissue
 
 
@@ -52,8 +53,8 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     try:
         return _write_sections(out, data, map_points, progress, workers or min(4, machine_workers()))
     except (RcmKinError, OSError) as exc:   # a folder with files but no index would look like a report
-        (out / "index.html").write_text(f"<!doctype html><title>rcm-kin report: failed</title>"
-                                        f"<p>The report was not completed: {html.escape(str(exc))}</p>\n")
+        write_text(out / "index.html", f"<!doctype html><title>rcm-kin report: failed</title>"
+                                       f"<p>The report was not completed: {html.escape(str(exc))}</p>\n")
         raise
 
 
@@ -166,7 +167,7 @@ def _write_sections(out: Path, data, map_points: int, progress: bool, workers: i
         identified = results["identified drive train"]
         sections += [identified] if identified is not None else []
     index = out / "index.html"
-    index.write_text(render_index(sections))
+    write_text(index, render_index(sections))
     return index
 
 

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rcm_kin.atomic import atomic_open
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, schedule_gains
 from rcm_kin.control.weights import Weights
 from rcm_kin.dynamics.drive import DriveParameters
@@ -118,7 +119,7 @@ def write_table(rows: list, path: str | Path) -> Path:
         raise RcmKinError("no rows to write")
     path = Path(path)
     try:
-        with path.open("w", newline="") as f:
+        with atomic_open(path, "w", newline="") as f:
             writer = csv.writer(f)
             writer.writerow([field.name for field in fields(rows[0])])
             writer.writerows([list(asdict(r).values()) for r in rows])

@@ -24,6 +24,7 @@ import casadi as ca
 import numpy as np
 from tqdm import tqdm
 
+from rcm_kin.atomic import atomic_open
 from rcm_kin.csv_table import write_csv_blocks
 from rcm_kin.dynamics.drive import DriveEffort, DriveParameters, model_label, resolve_drive
 from rcm_kin.dynamics.state_space import driven_gravity_function
@@ -139,7 +140,7 @@ class TorqueMap:
             raise RcmKinError(f"a map's table is written as .csv or .npz, not {path.name}")
         table = self.rows(0, self.poses)
         try:
-            with path.open("wb") as fh:                 # np.savez would append ".npz" to another suffix
+            with atomic_open(path, "wb") as fh:         # np.savez would append ".npz" to another suffix
                 np.savez(fh, **{name: table[:, k] for k, name in enumerate(self.header())})
         except OSError as exc:
             raise RcmKinError(f"cannot write {path}: {exc.strerror}") from None

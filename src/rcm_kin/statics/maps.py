@@ -19,6 +19,7 @@ import casadi as ca
 import numpy as np
 from tqdm import tqdm
 
+from rcm_kin.atomic import atomic_open
 from rcm_kin.csv_table import write_csv_blocks
 from rcm_kin.dynamics.drive import (
     DRIVEN,
@@ -313,7 +314,7 @@ def write_npz(gmap: GravityMap, path: str | Path) -> Path:
                     for q in ("tau", "voltage", "pwm") for k, j in enumerate(DRIVEN)})
     columns.update({name: x.reshape(-1) for name, x in gmap.extra.items()})
     try:
-        with path.open("wb") as fh:                      # np.savez would append ".npz" to another suffix
+        with atomic_open(path, "wb") as fh:              # np.savez would append ".npz" to another suffix
             np.savez(fh, **{name: columns[name] for name in table_header(gmap)})
     except OSError as exc:
         raise RcmKinError(f"cannot write {path}: {exc.strerror}") from None

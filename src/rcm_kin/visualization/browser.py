@@ -15,6 +15,7 @@ import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from rcm_kin.atomic import atomic_path, write_text
 from rcm_kin.errors import RcmKinError
 from rcm_kin.visualization.camera import FIELD_OF_VIEW, SideCamera, side_camera
 from rcm_kin.visualization.views import robot_view, show, write_html
@@ -49,7 +50,7 @@ def screenshot(page: str | Path, png: str | Path, size: tuple[int, int] = (800, 
     if browser is None:
         raise RcmKinError("no Chromium to render the page: install it (Debian: apt-get install chromium) "
                           "or use the matplotlib `renderer`", parameter="renderer")
-    page, png = Path(page).resolve(), Path(png).resolve()
+    page, out = Path(page).resolve(), Path(png)        # out unresolved: a link out of its folder is refused
     with tempfile.TemporaryDirectory(prefix="rcm-kin-chromium-") as folder:
         shot, profile = Path(folder) / "screenshot.png", Path(folder) / "profile"
         try:
@@ -61,8 +62,9 @@ def screenshot(page: str | Path, png: str | Path, size: tuple[int, int] = (800, 
         if run.returncode != 0 or not _is_png(shot):
             outcome = "no PNG written" if run.returncode == 0 else f"exit {run.returncode}"
             raise RcmKinError(f"{browser} could not render {page.name} ({outcome}): {_last_error(run.stderr)}")
-        shutil.move(shot, png)
-    return png
+        with atomic_path(out) as temporary:       # the folders may be on different file systems
+            shutil.copyfile(shot, temporary)
+    return out.resolve()
 
 
 def _is_png(path: Path) -> bool:
@@ -96,5 +98,5 @@ def browser_png(robot: Robot, q, png: str | Path, frames: tuple[str, ...] = (), 
     viewer["/Axes"].set_property("visible", False)
     with tempfile.TemporaryDirectory(prefix="rcm-kin-page-") as folder:
         page = write_html(viz, Path(folder) / "view.html", camera)
-        page.write_text(page.read_text().replace("</style>", HIDE_CONTROLS + "</style>", 1))
+        write_text(page, page.read_text().replace("</style>", HIDE_CONTROLS + "</style>", 1))
         return screenshot(page, png, size)

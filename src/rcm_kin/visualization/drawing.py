@@ -14,8 +14,10 @@ import numpy as np  # noqa: E402
 import pinocchio as pin  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
+from rcm_kin.atomic import atomic_path  # noqa: E402
 from rcm_kin.model.geometry import visual_geometry
 from rcm_kin.model.reduced import tree_configuration  # noqa: E402
+from rcm_kin.plotting import figure_format  # noqa: E402
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
@@ -72,6 +74,7 @@ def robot_drawing(robot: Robot, q, path: str | Path, title: str = "", view=(20.0
     ax.set_box_aspect((1, 1, 1))
     ax.view_init(*view)
     path = Path(path)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
+    with atomic_path(path) as temporary:
+        fig.savefig(temporary, dpi=110, bbox_inches="tight", format=figure_format(path))
     plt.close(fig)
     return path

@@ -21,6 +21,7 @@ import pinocchio as pin
 from meshcat.animation import Animation
 from pinocchio.visualize import MeshcatVisualizer
 
+from rcm_kin.atomic import write_text
 from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.model.geometry import visual_geometry
@@ -109,7 +110,7 @@ def write_html(viz: MeshcatVisualizer, path: str | Path, camera: SideCamera | No
     if isinstance(window, OfflineWindow) and (camera is not None or window.camera_target is None):
         set_camera(viz, camera or framing(view_points(viz)))
     try:
-        path.write_text(viz.viewer.static_html())
+        write_text(path, viz.viewer.static_html())
     except OSError as exc:
         raise RcmKinError(f"cannot write {path}: {exc.strerror}") from None
     return path

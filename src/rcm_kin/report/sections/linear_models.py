@@ -9,6 +9,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from rcm_kin.atomic import write_text
 from rcm_kin.control.gain_schedule import GainSchedule
 from rcm_kin.report.render import Table
 
@@ -34,6 +35,6 @@ def linear_models_section(out: Path, schedule: GainSchedule) -> LinearModelsSect
             models.append({"roll_deg": float(roll), "pitch_deg": float(pitch), "insertion_m": schedule.insertion,
                            "A": A.tolist(), "B": B.tolist(), "u_hold_pwm": schedule.u_hold[j, i].tolist()})
             rows.append([f"{roll:g}", f"{pitch:g}", f"{B[3, 0]:+.4g}", f"{B[4, 1]:+.4g}", _poles(A)])
-    (out / "linear_models.json").write_text(json.dumps(models, indent=1))
+    write_text(out / "linear_models.json", json.dumps(models, indent=1))
     return LinearModelsSection(Table.of(rows, ["roll (deg)", "pitch (deg)", "B roll (rad/s^2 per PWM)", "B pitch",
                                                "poles of A (1/s)"]), "linear_models.json")

@@ -9,6 +9,7 @@ from typing import ClassVar
 
 import yourdfpy
 
+from rcm_kin.atomic import write_text
 from rcm_kin.kinematics.self_check import KinematicChecks, kinematic_checks
 from rcm_kin.model import joint_table, load_robot
 from rcm_kin.report.render import Table
@@ -54,8 +55,8 @@ def models_section(out: Path, names=("psm", "mtm"), samples: int = 200) -> Model
     writes model_summary.json and kinematic_checks.json into ``out``."""
     summaries = [model_summary(n) for n in names]
     checks = kinematic_checks(samples)
-    (out / "model_summary.json").write_text(json.dumps(summaries, indent=1))
-    (out / "kinematic_checks.json").write_text(json.dumps(asdict(checks), indent=1))
+    write_text(out / "model_summary.json", json.dumps(summaries, indent=1))
+    write_text(out / "kinematic_checks.json", json.dumps(asdict(checks), indent=1))
     table = Table.of([[k, f"{v:.2e}"] for k, v in asdict(checks).items() if k != "samples"],
                      ["largest discrepancy", "value (SI)"])
     return ModelsSection(tuple(_model(s) for s in summaries), checks, table,

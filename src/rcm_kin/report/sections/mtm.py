@@ -11,6 +11,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from rcm_kin.atomic import write_text
 from rcm_kin.model import load_robot
 from rcm_kin.report.render import Table, relative
 
@@ -73,7 +74,7 @@ def mtm_section(out: Path, map_points: int = 61) -> MtmSection:
             models.append({f"{SHOULDER}_deg": a, f"{ELBOW}_deg": b, "A": lin.A.tolist(), "B": lin.B.tolist(),
                            "u_hold_N_m": lin.u0.tolist()})
             linear_rows.append([f"{a:g}", f"{b:g}", f"{lin.u0[0]:+.4f}", f"{lin.u0[1]:+.4f}", _poles(lin.A)])
-    (folder / "linear_models.json").write_text(json.dumps(models, indent=1))
+    write_text(folder / "linear_models.json", json.dumps(models, indent=1))
     paths = {f.name: relative(f, out) for f in files}
     return MtmSection(
         model=tmap.model, map_points=map_points, figure=paths["torque_map.png"],
