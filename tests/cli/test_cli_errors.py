@@ -163,6 +163,24 @@ def test_bad_log_rows_are_an_error_not_a_collapsed_fit(capsys, tmp_path, bad, co
     assert "data row 601" in err and "/t/roll/position" in err
 
 
+@pytest.mark.parametrize("fault, message", [("swap", "time goes back 0.0025 s at data row 502 (line 503)"),
+                                            ("jump", "a gap of 1000 s in the time stamps at data row 701 (line 702)")])
+@pytest.mark.parametrize("command", [["sysid", "{log}", "--joint", "roll"], ["greybox", "{log}", "--joint", "roll"],
+                                     ["predict", "psm", "{log}", "--joint", "roll"]])
+def test_log_time_stamps_out_of_order_or_with_a_gap_are_one_line_errors(capsys, tmp_path, fault, message, command):
+    """Out-of-order rows were dropped silently (a changed fit); a 1000 s jump made `sysid` build a
+    16 GB grid. Both are refused when the log is read, naming the row."""
+    log = step_log(tmp_path / f"{fault}.csv")
+    lines = log.read_text().splitlines(keepends=True)
+    if fault == "swap":                    # data rows 501 and 502 (lines 502 and 503)
+        lines[501], lines[502] = lines[502], lines[501]
+    else:                                  # from data row 701 (line 702) on, 1000 s later
+        lines[701:] = [f"{float(x.split(',', 1)[0]) + 1000.0!r},{x.split(',', 1)[1]}" for x in lines[701:]]
+    log.write_text("".join(lines))
+    err = assert_one_line_error(capsys, [w.format(log=log) for w in command], message)
+    assert str(log) in err
+
+
 def test_bad_log_rows_in_the_library_are_a_log_data_error(tmp_path):
     from rcm_kin.identification.telemetry import load_telemetry
 

@@ -133,6 +133,19 @@ def test_a_non_finite_message_is_an_error(tmp_path):
     assert (caught.value.path, caught.value.row, caught.value.column) == (bag, 4, "roll/position")
 
 
+def test_bag_stamps_out_of_order_are_an_error_naming_the_message(tmp_path):
+    """A bag's header stamps are checked as a CSV's time column: the 4th message stamped before the 3rd."""
+    from rcm_kin.errors import LogDataError
+
+    order = [0, 1, 3, 2, 4, 5]
+    messages = [(10**9 + k, _joint_state(Decimal(1) + Decimal(order[k]) / 400, ["roll"], [k], [1.0], [0.0]))
+                for k in range(6)]
+    bag = write_bag(tmp_path / "swapped", "MCAP", {"/psm_joint_telemetry": messages})
+    with pytest.raises(LogDataError, match="time goes back 0.0025 s at complete message 4") as caught:
+        load_telemetry(bag)
+    assert (caught.value.path, caught.value.row) == (bag, 4)
+
+
 def test_cli_topic_option_and_one_line_errors(two_topic_bag, tmp_path, capsys):
     assert main(["sysid", str(two_topic_bag), "--joint", "roll", "--topic", "/nope"]) == 2
     err = capsys.readouterr().err

@@ -30,6 +30,7 @@ from rcm_kin.cli import (
 from rcm_kin.cli.common import RAW, Parser, command_options, with_flags
 from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.rosbag import DEFAULT_TOPIC, telemetry_topic
+from rcm_kin.identification.telemetry import MAX_GAP, MAX_LOG_BYTES, MAX_LOG_ROWS, TIME_TOLERANCE
 
 # in the order of ``rcm-kin --help``
 COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
@@ -41,6 +42,9 @@ COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
             views.add_view, safety.add_safety, views.add_report, export.add_export)
 # the commands that read telemetry logs: CSV, or ROS 2 bags whose JointState topic --topic names
 LOG_COMMANDS = ("calibrate", "sysid", "greybox", "identify", "predict", "report")
+LOG_BOUNDS = (f"logs: a CSV of at most {MAX_LOG_ROWS:,} rows and {MAX_LOG_BYTES // 2**20} MiB; time stamps in order\n"
+              f"      (none more than {TIME_TOLERANCE:g} s before the one above), no gap over {MAX_GAP:g} s: else the "
+              "log is refused naming the row")
 
 
 def build_parser() -> Parser:
@@ -59,8 +63,11 @@ def build_parser() -> Parser:
     for add in COMMANDS:
         add(sub)
     for name in LOG_COMMANDS:
-        sub.choices[name].add_argument("--topic", default=DEFAULT_TOPIC,
-                                       help=f"telemetry topic of ROS 2 bag logs (.mcap, .db3; default {DEFAULT_TOPIC})")
+        command = sub.choices[name]
+        lines = [command.epilog, LOG_BOUNDS] if command.epilog else [LOG_BOUNDS]
+        command.epilog = ("\n" if command.formatter_class is RAW else "; ").join(lines)
+        command.add_argument("--topic", default=DEFAULT_TOPIC,
+                             help=f"telemetry topic of ROS 2 bag logs (.mcap, .db3; default {DEFAULT_TOPIC})")
     return parser
 
 

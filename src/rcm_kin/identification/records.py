@@ -9,10 +9,14 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.identification.telemetry import TelemetryLog, step_index
 
 METHODS = ("step", "prbs")
+# The most grid points a resampled record may have per logged sample: the 1 ms grid of the drive-train
+# fits (rcm_kin.identification.drive_train.PERIOD) over the slowest shared logs (a sample every 11 ms)
+# is 11; more is a grid the data do not justify (and, over a gap in the stamps, one that fills memory).
+MAX_UPSAMPLING = 20
 
 
 @dataclass(frozen=True)
@@ -39,14 +43,23 @@ def tick_period(log: TelemetryLog) -> float:
 
 def resample(log: TelemetryLog, joint: str, period: float | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """``(u, y, period)`` on a uniform grid: the PWM held (previous sample, as the driver holds it),
-    the angle linearly interpolated. ``period`` defaults to the median sample interval."""
+    the angle linearly interpolated. ``period`` defaults to the median sample interval. A sample
+    whose stamp is not after every earlier one (a repeated stamp) is left out: the first of each
+    stamp is kept. A grid of more than :data:`MAX_UPSAMPLING` points per kept sample is refused
+    (a :class:`~rcm_kin.errors.WorkLimitError`) before it is built."""
     log.require(joint)
     t = log.time
-    keep = np.r_[True, np.diff(t) > 0]
+    keep = np.r_[True, t[1:] > np.maximum.accumulate(t)[:-1]]
     t, u, y = t[keep], log.pwm[joint][keep], log.position[joint][keep]
     period = float(np.median(np.diff(t))) if period is None else period
     if t.size < 10 or not period > 0:
         raise RcmKinError(f"{log.path.name}: too few time-stamped samples to identify from")
+    points = t[-1] / period
+    if not points <= MAX_UPSAMPLING * t.size:
+        raise WorkLimitError(f"{log.path.name}: a grid of {period:g} s over its {t[-1]:.6g} s is {points:.3g} points, "
+                             f"more than {MAX_UPSAMPLING} per logged sample ({t.size:,}); a longer `period`, or a log "
+                             "without a gap in its time stamps", requested=points, limit=MAX_UPSAMPLING * t.size,
+                             parameter="period")
     grid = np.arange(0.0, t[-1], period)
     held = u[np.clip(np.searchsorted(t, grid, side="right") - 1, 0, t.size - 1)]
     return held, np.interp(grid, t, y), period
