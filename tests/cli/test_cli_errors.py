@@ -90,7 +90,7 @@ def test_every_command_refuses_a_bad_drive_file(capsys, tmp_path, monkeypatch, c
     monkeypatch.chdir(tmp_path)
     step_log(tmp_path / "log.csv")
     path = drive_file(tmp_path, "gear_ratio = 20.0", "gear_ratio = 0.0")
-    assert_one_line_error(capsys, [*command, "--params", path], "gear_ratio = 0 is outside (0, 10000]")
+    assert_one_line_error(capsys, [*command, "--params", path], "gear_ratio = 0 is outside [0.1, 10000]")
     assert not (tmp_path / "maps").exists() and not (tmp_path / "x.csv").exists()
 
 

@@ -35,7 +35,15 @@ import numpy as np
 
 from rcm_kin.atomic import write_text
 from rcm_kin.dynamics.axis_friction import AxisFriction
-from rcm_kin.dynamics.drive_schema import DRIVE_TRAIN, DRIVE_TRAIN_DEFAULT, JOINT_DRIVE, check_offset, check_table
+from rcm_kin.dynamics.drive_schema import (
+    DRIVE_TRAIN,
+    DRIVE_TRAIN_DEFAULT,
+    JOINT_DRIVE,
+    TABLES,
+    check_offset,
+    check_table,
+    joint_tables,
+)
 from rcm_kin.dynamics.drive_uncertainty import DriveUncertainty, parse_uncertainty, uncertainty_lines
 from rcm_kin.errors import ParameterFileError, RcmKinError, RcmKinWarning, read_toml, warn
 from rcm_kin.hardware import PWM_LIMIT
@@ -150,7 +158,7 @@ def _parsed(path: Path, raw: dict) -> DriveParameters:
     elif not isinstance(robot, str) or not robot:
         raise ParameterFileError(f"{path}: robot must be the name of the robot the file describes, got {robot!r}"[:300],
                                  path=path, table=None, key="robot")
-    tables = {k: v for k, v in raw.items() if k not in ("robot", "gravity_offsets", "drive_train", "uncertainty")}
+    tables = joint_tables(raw, path)
     if not tables:
         raise ParameterFileError(f"{path}: describes no joint (one table [<joint>] per driven joint)", path=path,
                                  table=None, key=None)
@@ -158,8 +166,9 @@ def _parsed(path: Path, raw: dict) -> DriveParameters:
     if firmware:                             # the PSM's code takes its three driven joints, in DRIVEN order
         if extra := [joint for joint in tables if joint not in DRIVEN]:
             raise ParameterFileError(f"{path}: [{extra[0]}] is not a driven joint of the bundled {SHIPPED_ROBOT}: its "
-                                     f"drive file has the tables {', '.join(DRIVEN)} only (the joints its firmware "
-                                     "drives)", path=path, table=extra[0], key=None)
+                                     f"drive file has the joint tables {', '.join(DRIVEN)} only (the joints its "
+                                     f"firmware drives) and the tables {', '.join(TABLES)}", path=path,
+                                     table=extra[0], key=None)
         tables = {joint: tables.get(joint) for joint in DRIVEN}
     joints = {joint: _joint_drive(path, joint, entry, firmware.get(joint)) for joint, entry in tables.items()}
     offsets = {}

@@ -23,6 +23,7 @@ import pinocchio as pin
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model.constrained import build_constraint_models, closure_residual
 from rcm_kin.model.description import GRAVITY, RobotDescription, read_description, urdf_alone
+from rcm_kin.model.inertials import check_bodies
 from rcm_kin.model.reduced import build_reduced_model, tree_configuration
 from rcm_kin.model.robot import Robot
 from rcm_kin.model.urdf_text import UrdfFacts, build_tree, massless_links, merge_passive, read_urdf
@@ -123,6 +124,8 @@ def build_robot(description: RobotDescription, counterweights: bool = True, urdf
     facts = read_urdf(urdf_text, where)
     text = facts.text if counterweights else _urdf_without(description, description.counterweights, facts.text)
     tree = build_tree(facts, where, text)
+    dropped = () if counterweights else description.counterweights    # their inertials removed from the text
+    check_bodies(tree, {link: m for link, m in facts.masses.items() if link not in dropped}, where)
     tree.gravity.linear = np.asarray(description.gravity, dtype=float)
     if not tree.check(tree.createData()):
         raise RcmKinError(f"{where}: Pinocchio's model check failed")

@@ -1,8 +1,8 @@
 """What rcm_kin reads from a URDF's text before Pinocchio sees it, and the open tree built from it.
 
 - :func:`read_urdf`: the robot's name, its joints' types, ``<mimic>`` tags (as passive relations),
-  the links with ``<inertial>`` data and the leaf links; joint types rcm_kin does not model
-  (floating, planar, anything else) are refused with the joint's name.
+  the links with ``<inertial>`` data (checked: :mod:`rcm_kin.model.inertials`) and the leaf links;
+  joint types rcm_kin does not model (floating, planar, anything else) are refused with the joint's name.
 - ``continuous`` joints: Pinocchio builds them as 2-variable (cos, sin) joints; rcm_kin rewrites
   them in the text as ``revolute`` with limits [-pi, pi] so that every joint stays 1-DOF (a
   ``<limit>``'s effort and velocity are kept; without one they stay infinite, as Pinocchio has them).
@@ -17,13 +17,14 @@ import os
 import tempfile
 import threading
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
 
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model.description import PassiveRelation
+from rcm_kin.model.inertials import body_links, check_inertials
 
 MODELLED = ("revolute", "continuous", "prismatic", "fixed")
 CONTINUOUS_LIMIT = np.pi   # rad: the limits [-pi, pi] a continuous joint is given
@@ -41,6 +42,7 @@ class UrdfFacts:
     unlimited: tuple[str, ...]               # of those, the ones without <limit>: effort, velocity infinite
     inertial_links: frozenset[str]           # links with an <inertial> element
     leaf_links: tuple[str, ...]              # links no joint has as parent, document order
+    masses: dict[str, float] = field(default_factory=dict)   # link -> its <inertial> mass (kg), checked
 
 
 def _number(element: ET.Element, key: str, default: float, where: str) -> float:
@@ -97,12 +99,13 @@ def read_urdf(text: str, where: str) -> UrdfFacts:
         if relation.follows not in types:
             raise RcmKinError(f"{where}: joint '{relation.joint}' mimics '{relation.follows}', "
                               f"which is not in the URDF")
+    masses = check_inertials(root, where)
     links = [link.get("name", "") for link in root.findall("link")]
     inertial = frozenset(link.get("name") for link in root.findall("link") if link.find("inertial") is not None)
     return UrdfFacts(
         name=root.get("name", ""), text=ET.tostring(root, encoding="unicode") if continuous else text,
         joint_types=types, mimic=tuple(mimic), continuous=tuple(continuous), unlimited=tuple(unlimited),
-        inertial_links=inertial,
+        inertial_links=inertial, masses=masses,
         leaf_links=tuple(name for name in links if name not in parents))
 
 
@@ -143,7 +146,8 @@ def _first_error(captured: str) -> str:
 
 def build_tree(facts: UrdfFacts, where: str, text: str | None = None) -> pin.Model:
     """Pinocchio's open tree of ``text`` (default ``facts.text``), all joints independent (mimic
-    tags not applied); a parse failure is one error line naming the file."""
+    tags not applied); a parse failure, or an error urdfdom reports while it builds (and drops what
+    it could not read), is one error line naming the file."""
     with _CapturedStderr() as stderr:
         try:
             tree = pin.buildModelFromXML(facts.text if text is None else text)
@@ -152,6 +156,9 @@ def build_tree(facts: UrdfFacts, where: str, text: str | None = None) -> pin.Mod
     if tree is None:
         reason = _first_error(stderr.text) or failure
         raise RcmKinError(f"{where}: Pinocchio cannot read the URDF ({reason[:200]})")
+    if reason := _first_error(stderr.text):
+        raise RcmKinError(f"{where}: the URDF parser reported an error and dropped what it could not read "
+                          f"({reason[:200]})")
     for name in facts.unlimited:
         j = tree.joints[tree.getJointId(name)]
         tree.effortLimit[j.idx_v] = tree.velocityLimit[j.idx_v] = np.inf
@@ -199,8 +206,5 @@ def merge_passive(mimic: tuple[PassiveRelation, ...], passive: tuple[PassiveRela
 def massless_links(tree: pin.Model, inertial_links: frozenset[str]) -> tuple[str, ...]:
     """Links moved by a non-fixed joint (directly or through fixed joints) whose rigid body (the
     links fixed to each other) has no ``<inertial>`` at all, in tree order."""
-    bodies: dict[int, list[str]] = {}
-    for frame in tree.frames:
-        if frame.type == pin.FrameType.BODY and frame.parentJoint > 0:
-            bodies.setdefault(frame.parentJoint, []).append(frame.name)
+    bodies = body_links(tree)
     return tuple(link for j in sorted(bodies) if not inertial_links & set(bodies[j]) for link in bodies[j])
