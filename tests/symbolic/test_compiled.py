@@ -5,12 +5,13 @@ from __future__ import annotations
 import importlib
 import os
 import shutil
+import warnings
 
 import casadi as ca
 import numpy as np
 import pytest
 
-from rcm_kin.errors import CompilerFallbackWarning, RcmKinError
+from rcm_kin.errors import CompilerFallbackWarning, RcmKinError, RcmKinWarning
 
 comp = importlib.import_module("rcm_kin.symbolic.compiled")   # the module (the package's ``compiled`` is the function)
 
@@ -99,15 +100,80 @@ def test_the_cache_keeps_the_most_recently_used_libraries(cache, monkeypatch):
 
 @needs_compiler
 def test_a_truncated_cached_library_is_built_anew(cache, model):
-    """A cached library cut short (a full disk, a killed copy) is deleted and rebuilt on the next
-    call, which then gives the interpreted function's values (1e-12)."""
+    """A cached library cut short after its ELF header (a full disk, a killed copy) fails its
+    checksum: deleted and rebuilt on the next call, with one warning naming it, which then gives
+    the interpreted function's values (1e-12)."""
     library = comp.compiled_library(model.gravity)        # built, not loaded in this process
-    library.write_bytes(library.read_bytes()[:64])       # "file too short"
-    g = comp.compiled(model.gravity)
+    library.write_bytes(library.read_bytes()[:64])       # the ELF header only
+    with pytest.warns(RcmKinWarning) as caught:
+        g = comp.compiled(model.gravity)
+    assert len(caught) == 1
+    assert str(caught[0].message) == (f"the cached library {library} does not match its SHA-256 "
+                                      "(truncated or overwritten): deleted and built anew")
     assert g.class_name() != model.gravity.class_name()  # the library, not the interpreted fallback
     assert library.stat().st_size > 64 and list(cache.glob("*.so")) == [library]
     for q in np.random.default_rng(3).uniform(model.lower, model.upper, (10, 3)):
         np.testing.assert_allclose(np.array(g(q)), np.array(model.gravity(q)), rtol=1e-12, atol=1e-12)
+
+
+def scaled(factor: float) -> ca.Function:
+    """``f(x) = factor * x``: functions of one name that differ only in a constant (as one model's
+    gravity under two parameter sets)."""
+    x = ca.SX.sym("x", 2)
+    return ca.Function("f", [x], [factor * x])
+
+
+@needs_compiler
+@pytest.mark.parametrize("with_checksum", [False, True])
+def test_a_library_copied_over_another_name_is_built_anew(cache, with_checksum):
+    """The library of ``3 x`` copied over the cached name of ``2 x`` (alone: its bytes do not hash
+    as recorded; with its checksum file: the key recorded is another's) is detected, rebuilt with
+    one warning, and the numbers are those of ``2 x``."""
+    two, three = comp.compiled_library(scaled(2.0)), comp.compiled_library(scaled(3.0))
+    assert two != three
+    shutil.copyfile(three, two)
+    if with_checksum:
+        shutil.copyfile(comp.checksum_file(three), comp.checksum_file(two))
+    with pytest.warns(RcmKinWarning) as caught:
+        f = comp.compiled(scaled(2.0))
+    reason = "has a checksum file for another key" if with_checksum else "does not match its SHA-256"
+    assert len(caught) == 1 and str(caught[0].message).startswith(f"the cached library {two} {reason}")
+    assert f.class_name() != "SXFunction"
+    np.testing.assert_array_equal(np.array(f([1.5, -4.0])).ravel(), [3.0, -8.0])
+    np.testing.assert_array_equal(np.array(comp.compiled(scaled(3.0))([1.0, 2.0])).ravel(), [3.0, 6.0])
+
+
+@needs_compiler
+def test_a_library_without_its_checksum_file_is_built_anew(cache, model, monkeypatch):
+    """A library from before checksum files (or copied in by hand) is rebuilt (the compiler runs
+    once), with one warning, and gets its checksum file."""
+    library = comp.compiled_library(model.gravity)
+    comp.checksum_file(library).unlink()
+    runs, run = [], comp.subprocess.run
+    monkeypatch.setattr(comp.subprocess, "run", lambda *a, **k: runs.append(a) or run(*a, **k))
+    with pytest.warns(RcmKinWarning, match="has no checksum file") as caught:
+        g = comp.compiled(model.gravity)
+    assert len(caught) == 1 and len(runs) == 1 and comp.checksum_file(library).is_file()
+    for q in np.random.default_rng(4).uniform(model.lower, model.upper, (5, 3)):
+        np.testing.assert_allclose(np.array(g(q)), np.array(model.gravity(q)), rtol=1e-12, atol=1e-12)
+
+
+@needs_compiler
+def test_a_valid_cached_library_is_used_without_building(cache, model, monkeypatch):
+    """A library that passes its checks is loaded as it is: no compiler run, no warning."""
+    library = comp.compiled_library(model.gravity)
+    assert comp.checksum_file(library).read_text().split()[1] == comp.function_key(
+        model.gravity, comp.compiler_command())
+
+    def no_build(*args, **kwargs):
+        raise AssertionError("the compiler ran on a valid cached library")
+    monkeypatch.setattr(comp.subprocess, "run", no_build)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        g = comp.compiled(model.gravity)
+    assert g.class_name() != model.gravity.class_name()
+    q = np.array([0.1, -0.2, 0.15])
+    np.testing.assert_allclose(np.array(g(q)), np.array(model.gravity(q)), rtol=1e-12, atol=1e-12)
 
 
 def test_a_library_that_never_loads_is_an_error(cache, model, monkeypatch, tmp_path):

@@ -5,9 +5,12 @@ library with the C compiler ``$CC`` (default ``cc``) and loads it with ``casadi.
 library is cached under ``$XDG_CACHE_HOME/rcm-kin/casadi`` (default ``~/.cache/rcm-kin/casadi``),
 named by a SHA-256 of the function's serialisation, the CasADi version, the compile command and
 the machine (operating system and processor: a home folder shared by machines shares no binaries),
-so a changed model, CasADi or compiler builds anew and an unchanged one loads in milliseconds. A
-cached library that does not load (truncated by a full disk or a killed copy) is deleted and built
-once more.
+so a changed model, CasADi or compiler builds anew and an unchanged one loads in milliseconds. Each
+library has a checksum file beside it (``<library>.sha256``: the SHA-256 of its bytes and its full
+key, written before the library is renamed into place); a cached library is used only when the
+file's key is the one asked for and its bytes hash as recorded. One that fails (truncated, another
+library copied over its name, no checksum file) or does not load is deleted and built once more,
+with one warning naming it.
 The compiled function evaluates the same expression graph: results agree with the interpreted
 function to rounding (the tests hold them to 1e-12). Mapping a compiled function
 (``compiled(f).map(n)``) keeps the loop in C; :func:`map_points` evaluates many points through
@@ -37,6 +40,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from rcm_kin.atomic import write_text
 from rcm_kin.errors import CompilerFallbackWarning, RcmKinError, warn
 
 COMPILE_FLAGS = ("-O2", "-fPIC", "-shared")
@@ -119,6 +123,7 @@ def load_library(library: Path, rebuild: Callable[[], Path | None], name: str) -
         failure = exc
     try:
         library.unlink(missing_ok=True)
+        checksum_file(library).unlink(missing_ok=True)
     except OSError as exc:
         raise RcmKinError(f"the compiled {name} does not load ({failure}) and cannot be deleted "
                           f"({exc.strerror})") from None
@@ -165,18 +170,25 @@ def build_library(name: str, key: str, source: str | Callable[[], str], command:
     """The shared library ``name_<key>.so`` in the cache folder, compiled from the C ``source``
     (or what ``source()`` returns, called only when the library is not cached) with ``command``
     and ``flags`` first if absent (written atomically, so concurrent processes never
-    load a half-written file). The folder keeps the :data:`CACHE_LIBRARIES` most recently used
-    libraries (a use touches the file). A compiler failure is an :class:`RcmKinError` with its
-    first line."""
+    load a half-written file), its :func:`checksum_file` written before it. A cached library is
+    returned only when :func:`library_mismatch` finds none; otherwise it is deleted and built
+    anew, with one warning naming it and why. The folder keeps the :data:`CACHE_LIBRARIES` most
+    recently used libraries (a use touches the file). A compiler failure is an
+    :class:`RcmKinError` with its first line."""
     folder = cache_folder()
     library = folder / f"{name}_{key[:32]}.so"
     if library.exists():
-        try:
-            os.utime(library)
-        except OSError:                 # pruned by another process just now: built again below
-            pass
+        reason = library_mismatch(library, key)
+        if reason is None:
+            try:
+                os.utime(library)
+            except OSError:             # pruned by another process just now: built again below
+                pass
+            else:
+                return library
         else:
-            return library
+            warn(f"the cached library {library} {reason}: deleted and built anew")
+            library.unlink(missing_ok=True)
     folder.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=folder) as work:
         path = Path(work) / f"{name}.c"
@@ -187,9 +199,41 @@ def build_library(name: str, key: str, source: str | Callable[[], str], command:
         if run.returncode != 0:
             first = (run.stderr.strip().splitlines() or ["no message"])[0]
             raise RcmKinError(f"compiling {name} with {command[0]} failed: {first}")
+        write_text(checksum_file(library), f"{_sha256(target)} {key}\n")
         target.replace(library)
     prune_cache(folder, keep=library)
     return library
+
+
+def checksum_file(library: Path) -> Path:
+    """The checksum file beside ``library``: ``<library>.sha256``, one line ``<sha256 of the
+    library's bytes> <full cache key>``."""
+    return library.with_name(library.name + ".sha256")
+
+
+def library_mismatch(library: Path, key: str) -> str | None:
+    """Why the cached ``library`` must not be used for ``key`` (its :func:`checksum_file` missing
+    or unreadable, recorded for another key, or its bytes hashing otherwise: truncated, or
+    another library copied over its name), or None when it is the library built for ``key``."""
+    try:
+        recorded = checksum_file(library).read_text().split()
+    except FileNotFoundError:
+        return "has no checksum file (built by an older version, or copied in)"
+    except (OSError, UnicodeDecodeError) as exc:
+        return f"has an unreadable checksum file ({getattr(exc, 'strerror', None) or exc})"
+    if len(recorded) != 2 or recorded[1] != key:
+        return "has a checksum file for another key"
+    try:
+        digest = _sha256(library)
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror})"
+    return None if digest == recorded[0] else "does not match its SHA-256 (truncated or overwritten)"
+
+
+def _sha256(path: Path) -> str:
+    """SHA-256 (hex) of the bytes of the file ``path``."""
+    with open(path, "rb") as fh:
+        return hashlib.file_digest(fh, "sha256").hexdigest()
 
 
 def prune_cache(folder: Path, keep: Path, limit: int | None = None) -> None:
@@ -207,6 +251,7 @@ def prune_cache(folder: Path, keep: Path, limit: int | None = None) -> None:
     for _, path in libraries[limit:]:
         if path != keep:
             path.unlink(missing_ok=True)
+            checksum_file(path).unlink(missing_ok=True)
 
 
 def _merged(fn: ca.Function) -> ca.Function:
