@@ -5,34 +5,18 @@ from dataclasses import replace
 import numpy as np
 
 from rcm_kin.dynamics.axis_friction import AxisFriction
-from rcm_kin.dynamics.stick_slip import AxisPlant
 from rcm_kin.identification.cross_validation import fit_with_cv, undetermined_ranges
-from rcm_kin.identification.drive_train import AxisLog, leave_one_out, predict_log, search_for
-
-GAIN, MASS = 0.1, 0.5     # N m per count, kg m^2
+from rcm_kin.identification.drive_train import leave_one_out, search_for
 
 TRUTH = AxisFriction(extra_inertia=0.4, viscous=6.0, coulomb=0.3, presliding_stiffness=20.0, presliding_slope=2.0,
                      presliding_force=1.5)
 
 
-def _steps(truth: AxisFriction) -> tuple[AxisPlant, list[AxisLog]]:
-    """Three noiseless steps of a presliding-spring axis with viscous friction on a sine gravity."""
-    grid = np.linspace(-1.0, 1.0, 201)
-    plant = AxisPlant(GAIN, 0.6, 3e-3, grid, 3.0 * np.sin(grid), np.full(grid.size, MASS))
-    logs = []
-    for k, start in enumerate((-0.2, 0.0, 0.2)):
-        hold = 3.0 * np.sin(start) / GAIN
-        pwm = np.r_[hold, np.full(1500, hold + 8.0 + 3.0 * k)]
-        blank = AxisLog(f"step {k}", "roll", 1e-3, pwm, np.full(pwm.size, start), np.array([start, 0, 0.08]))
-        logs.append(AxisLog(blank.name, "roll", 1e-3, pwm, predict_log(truth, plant, blank), blank.pose))
-    return plant, logs
-
-
-def test_two_processes_give_the_serial_results_and_no_fold_sees_its_log():
+def test_two_processes_give_the_serial_results_and_no_fold_sees_its_log(steps):
     """On two processes the fit, folds and inner folds are those of one process (same seeds), the
     folds those of the serial leave_one_out; changing log 0's data leaves fold 0 and its inner
     folds exactly as they were (nothing of log 0 enters them) while the fit on all logs moves."""
-    plant, logs = _steps(TRUTH)
+    plant, logs = steps(TRUTH)
     search = search_for(("viscous", "presliding"))
     serial = fit_with_cv(search, [plant] * 3, logs, 0, (8, 8), cv=True, inner=True, workers=1)
     pooled = fit_with_cv(search, [plant] * 3, logs, 0, (8, 8), cv=True, inner=True, workers=2)
@@ -46,12 +30,12 @@ def test_two_processes_give_the_serial_results_and_no_fold_sees_its_log():
     assert changed.friction != serial.friction
 
 
-def test_an_undetermined_parameter_spans_its_range_and_a_determined_one_does_not():
+def test_an_undetermined_parameter_spans_its_range_and_a_determined_one_does_not(steps):
     """A slip force above anything the steps load the spring with leaves the cost flat up to
     the bound (5 N m): its range reaches it; the viscous friction, which every step feels, keeps a
     narrow range around the truth."""
     truth = replace(TRUTH, presliding_force=4.0)
-    plant, logs = _steps(truth)
+    plant, logs = steps(truth)
     ranges = undetermined_ranges(truth, [plant] * 3, logs, ["presliding_force", "viscous"])
     lo, hi = ranges["presliding_force"]
     assert hi == 5.0 and lo <= 4.0
@@ -59,7 +43,7 @@ def test_an_undetermined_parameter_spans_its_range_and_a_determined_one_does_not
     assert lo <= 6.0 <= hi and hi - lo < 6.0
 
 
-def test_a_left_out_band_does_not_move_with_its_own_log(monkeypatch):
+def test_a_left_out_band_does_not_move_with_its_own_log(monkeypatch, steps):
     """``identify_joint --cv`` scores a band per left-out log; the band of log 0 (its lower and upper
     edges) is built from nothing fitted on log 0 (only its first rest and its PWM, where every
     prediction of it starts), so changing log 0's measured angle after its start leaves it as it
@@ -68,7 +52,7 @@ def test_a_left_out_band_does_not_move_with_its_own_log(monkeypatch):
     from rcm_kin.identification import identify as module
 
     monkeypatch.setattr(module, "GENERATIONS", (6, 6))
-    plant, logs = _steps(TRUTH)
+    plant, logs = steps(TRUTH)
     first = module.identify_joint("roll", logs, [plant] * 3, cv=True, terms=("viscous", "presliding"), workers=1)
     odd = replace(logs[0], measured=np.r_[logs[0].measured[0], logs[0].measured[1:] + 0.01])
     second = module.identify_joint("roll", [odd] + logs[1:], [plant] * 3, cv=True, terms=("viscous", "presliding"),

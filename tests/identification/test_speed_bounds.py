@@ -4,11 +4,8 @@ import numpy as np
 import pytest
 
 from rcm_kin.dynamics.axis_friction import AxisFriction
-from rcm_kin.dynamics.stick_slip import AxisPlant
-from rcm_kin.identification.drive_train import AxisLog, fit_friction, predict_log, search_for
+from rcm_kin.identification.drive_train import fit_friction, search_for
 from rcm_kin.identification.speed_bounds import SpeedBound, sliding_friction, speed_bounds
-
-GAIN, MASS = 0.1, 0.5     # N m per count, kg m^2
 
 
 def test_the_sinusoid_bounds_match_the_issues_hand_arithmetic(params):
@@ -50,26 +47,13 @@ def test_sliding_friction_adds_every_sliding_term():
     assert sliding_friction(f, 0.2) == pytest.approx(0.3 + 0.1 + 0.2 * np.exp(-4.0) + 0.4 + 3.0 * 0.2)
 
 
-def _steps(truth: AxisFriction) -> tuple[AxisPlant, list[AxisLog]]:
-    """Three noiseless steps of a presliding-spring axis with viscous friction on a sine gravity."""
-    grid = np.linspace(-1.0, 1.0, 201)
-    plant = AxisPlant(GAIN, 0.6, 3e-3, grid, 3.0 * np.sin(grid), np.full(grid.size, MASS))
-    logs = []
-    for k, start in enumerate((-0.2, 0.0, 0.2)):
-        hold = 3.0 * np.sin(start) / GAIN
-        pwm = np.r_[hold, np.full(1500, hold + 8.0 + 3.0 * k)]
-        blank = AxisLog(f"step {k}", "roll", 1e-3, pwm, np.full(pwm.size, start), np.array([start, 0, 0.08]))
-        logs.append(AxisLog(blank.name, "roll", 1e-3, pwm, predict_log(truth, plant, blank), blank.pose))
-    return plant, logs
-
-
-def test_a_fit_that_violates_a_bound_is_pulled_onto_it():
+def test_a_fit_that_violates_a_bound_is_pulled_onto_it(steps):
     """The steps' own optimum (the truth: 5.5 N m of friction at 0.7 rad/s) breaks a bound set at
     80 % of it: unconstrained the fit finds the truth's friction at speed, constrained it ends
     on the bound (active, within 1 %) and satisfies it."""
     truth = AxisFriction(extra_inertia=0.4, viscous=6.0, coulomb=0.3, presliding_stiffness=20.0,
                          presliding_slope=2.0, presliding_force=1.5)
-    plant, logs = _steps(truth)
+    plant, logs = steps(truth)
     bound = SpeedBound("test", "roll", 0.7, 0.8 * sliding_friction(truth, 0.7), "synthetic")
     search = search_for(("viscous", "presliding"))
     free, _ = fit_friction(search, [plant] * 3, logs, seed=3, generations=30)
