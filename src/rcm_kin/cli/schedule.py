@@ -21,6 +21,7 @@ from rcm_kin.cli.common import (
 )
 from rcm_kin.cli.control import model_line
 from rcm_kin.cli.statics import joint_assignments
+from rcm_kin.cli.tuning import add_tune_options, run_tune
 from rcm_kin.control.friction import DEFAULT_RAMP_DEG_S
 from rcm_kin.control.weights import Weights
 from rcm_kin.dynamics.drive import DRIVEN
@@ -33,7 +34,8 @@ EPILOG_SCHEDULE = ("examples: rcm-kin schedule psm --out gains\n"
                    "          rcm-kin schedule psm --grid roll=-20:20:5 pitch=-15:15:3 --out gains\n"
                    "          rcm-kin schedule my_arm.toml --grid j2=-30:60:7 j3=-20:40:5 --out gains   (JSON, CSV)\n"
                    "          rcm-kin schedule my_arm.toml --grid j2=-30:60:7 j3=-20:40:5 --at j4=15 --out gains\n"
-                   "          rcm-kin schedule psm --gravity-feedforward --friction-feedforward --out gains")
+                   "          rcm-kin schedule psm --gravity-feedforward --friction-feedforward --out gains\n"
+                   "          rcm-kin schedule psm --tune --out tuned   (about 9 minutes on 2 cores)")
 
 
 def add_schedule(sub) -> None:
@@ -62,9 +64,11 @@ def add_schedule(sub) -> None:
     p.add_argument("--check-points", type=count(2, MAX_CHECK_POINTS), default=None,
                    help=f"PSM: stability check on N x N poses across the grid (2 to {MAX_CHECK_POINTS}, default "
                         f"{CHECK_POINTS}); other robots: the closed loop at every grid point, no option")
+    add_tune_options(p)
     add_params(p, "drive parameter TOML of this robot (default: the one its sidecar names; a schedule needs one)")
     p.add_argument("--out", required=True, type=path_text, help="output folder (created)")
-    add_json(p, '{"files", "stable", weakest point, "model", "input_unit"}')
+    add_json(p, '{"files", "stable", weakest point, "model", "input_unit"}; with --tune also "chosen", "values", '
+                '"scores", "criteria"')
     p.set_defaults(func=cmd_schedule)
 
 
@@ -77,7 +81,10 @@ def cmd_schedule(args) -> None:
         if args.at is not None:
             raise RcmKinError("--at is not an option of the PSM's schedule: it holds the insertion at --insertion "
                               f"(default {HOME_INSERTION:g} m)")
-        return _psm_schedule(args, model)
+        return run_tune(args, model) if args.tune else _psm_schedule(args, model)
+    if args.tune:
+        raise RcmKinError(f"--tune simulates the bundled PSM's firmware and thesis experiments; {model.robot}'s "
+                          "schedule is designed by LQR/LQI")
     if args.gravity_feedforward or args.friction_feedforward:
         raise RcmKinError("--gravity-feedforward and --friction-feedforward are of the PSM firmware's C header; "
                           f"the schedule of {model.robot} is written as JSON and CSV")

@@ -19,7 +19,7 @@ from rcm_kin.cli.common import (
 )
 from rcm_kin.errors import output_folder
 from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS, PWM_LIMIT
-from rcm_kin.simulation.controllers import CONTROLLERS
+from rcm_kin.simulation.controllers import CONTROLLERS, TUNED
 
 RATE = 1.0 / FIRMWARE_PERIOD        # Hz
 EPILOG_SIMULATE = ("examples: rcm-kin simulate psm --experiment sine --controller scheduled --json\n"
@@ -34,11 +34,16 @@ def add_simulate(sub) -> None:
     p.add_argument("--experiment", required=True, choices=("sine", "step", "target"),
                    help="sine: roll 20 deg / pitch 15 deg, 3 s period; step: 10 deg at 0.5 s; "
                         "target: MTM trajectory through teleoperation and IK")
-    p.add_argument("--controller", required=True, choices=CONTROLLERS,
+    p.add_argument("--controller", required=True, choices=CONTROLLERS + (TUNED,),
                    help=f"p: Kp {P_GAINS[0]:g}/{P_GAINS[1]:g} PWM/deg; pid: thesis Table 3.4; lqr-fixed: model "
                         "LQR/LQI at (0,0); scheduled: gain-scheduled LQR/LQI + feedforward; scheduled-gravity: plus "
                         "holding PWM; scheduled-friction: plus the sliding-friction compensation on the reference "
-                        "velocity; thesis: the thesis's flashed gain tables and law (Tables 4.4-4.8)")
+                        "velocity; thesis: the thesis's flashed gain tables and law (Tables 4.4-4.8); tuned: the "
+                        "state-feedback law with the tables of --gains (default: the shipped design of schedule psm "
+                        "--tune)")
+    p.add_argument("--gains", type=path_text, metavar="GAINS_JSON",
+                   help="--controller tuned: the gains.json of rcm-kin schedule psm [--tune] to run (its tables, "
+                        "feedforwards and law options; default: the shipped tuned design)")
     p.add_argument("--duration", type=finite(0, 1e4, "s", open_lo=True),
                    help="simulated seconds (default: sine 6, step 3, target: recording; at most 200,000 controller "
                         "periods)")
@@ -72,7 +77,7 @@ def cmd_simulate(args) -> None:
     settings = FirmwareSettings(period=1.0 / args.rate, noise_counts=args.noise_counts, **limits)
     result = run_experiment(args.experiment, args.controller, args.duration, load_drive_parameters(args.params),
                             settings, args.trajectory, seed=args.seed,
-                            progress=progress_wanted(args) and sys.stderr.isatty())
+                            progress=progress_wanted(args) and sys.stderr.isatty(), gains=args.gains)
     metrics = tracking_metrics(result, args.skip)
     payload = {axis: vars(m) for axis, m in metrics.items()}
     lines = [f"{args.experiment} with {args.controller}, {result.time[-1]:.2f} s at {args.rate:g} Hz:"] + [

@@ -38,6 +38,7 @@ from rcm_kin.simulation.kernel_forms import PID, STATE_FEEDBACK, THESIS, LoopLaw
 
 CONTROLLERS = ("p", "pid", "lqr-fixed", "scheduled", "scheduled-gravity", "scheduled-friction", "thesis")
 MODEL_FREE = ("p", "pid", "thesis")        # the controllers that need no gain schedule
+TUNED = "tuned"     # the state-feedback law with the tables of a gain file (default: the shipped tuned design)
 
 
 @dataclass(frozen=True)

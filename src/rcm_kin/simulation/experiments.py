@@ -13,12 +13,13 @@ import dataclasses
 import numpy as np
 
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, schedule_gains
+from rcm_kin.control.schedule_file import read_schedule_file
 from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics, holding_pwm
 from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.model import load_robot
 from rcm_kin.simulation.compiled_loop import run_closed_loop
-from rcm_kin.simulation.controllers import MODEL_FREE, Controller, Hold, make_controller
+from rcm_kin.simulation.controllers import MODEL_FREE, TUNED, Controller, Hold, StateFeedbackController, make_controller
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import SimulationResult, firmware_units, simulate
 from rcm_kin.simulation.plant import Plant, SmoothPlant, drive_train_plant, period_map
@@ -127,21 +128,35 @@ def start_hold(reference: Reference, params: DriveParameters | None = None,
     return Hold(firmware_units(reference.position[0]), holding_pwm(model, reference.position[0]))
 
 
+def named_controller(name: str, params: DriveParameters | None = None, gains=None) -> Controller:
+    """The controller ``name`` (the CLI's names: :data:`~rcm_kin.simulation.controllers.CONTROLLERS`
+    with the schedule designed on ``params``, or :data:`~rcm_kin.simulation.controllers.TUNED`: the
+    state-feedback law with the tables and options of the gain file ``gains``, default the shipped
+    tuned design, :func:`rcm_kin.control.schedule_file.read_schedule_file`)."""
+    if name == TUNED:
+        loaded = read_schedule_file(gains)
+        return StateFeedbackController(loaded.schedule, name=TUNED, **loaded.flags)
+    if gains is not None:
+        raise RcmKinError(f"a gain file is read by the '{TUNED}' controller, not '{name}' (its tables are designed on "
+                          "the parameter set)", parameter="gains")
+    return make_controller(name, None if name in MODEL_FREE else psm_schedule(params or load_drive_parameters()))
+
+
 def run_experiment(experiment: str, controller: str, duration: float | None = None,
                    params: DriveParameters | None = None, settings: FirmwareSettings | None = None,
-                   trajectory=None, seed: int = 0, progress: bool = False, fast: bool = True) -> SimulationResult:
+                   trajectory=None, seed: int = 0, progress: bool = False, fast: bool = True,
+                   gains=None) -> SimulationResult:
     """Simulate one thesis experiment with one controller (names as in the CLI). ``fast``: the
     whole loop in one compiled kernel (:mod:`rcm_kin.simulation.compiled_loop`; without a C
     compiler the readable loop, with a warning); ``False`` runs the readable reference loop. Both
     give the same result (tests/simulation/test_compiled_loop.py, tests/simulation/test_simulation.py).
     The run starts from the steady hold of the first pose (:func:`start_hold`): integrals charged
-    with its holding PWM."""
+    with its holding PWM. ``gains``: the gain file of the ``tuned`` controller (:func:`named_controller`)."""
     settings, params = settings or FirmwareSettings(), params or load_drive_parameters()
+    law = named_controller(controller, params, gains)       # a designed schedule takes about 1 s
     plant = _built_plant(params, settings.period, 4, fast)
-    schedule = None if controller in MODEL_FREE else psm_schedule(params)     # the design takes about 1 s
     reference = experiment_reference(experiment, settings.period, duration, trajectory)
-    result = closed_loop(plant, make_controller(controller, schedule), reference, settings, seed, progress, fast,
-                         hold=start_hold(reference, params))
+    result = closed_loop(plant, law, reference, settings, seed, progress, fast, hold=start_hold(reference, params))
     check_in_limits(result)
     return result
 

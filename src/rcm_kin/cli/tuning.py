@@ -1,0 +1,92 @@
+"""``schedule psm --tune``: gains chosen by simulating the closed loop over the identified
+uncertainty, judged beside the thesis law on draws the tuning saw and on draws it did not."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+from rcm_kin.atomic import write_text
+from rcm_kin.cli.common import count, emit, finite, progress_wanted
+from rcm_kin.errors import RcmKinError, output_folder
+
+TUNE_HELP = ("tune the firmware law by simulation instead of designing it by LQR/LQI: differential evolution "
+             "over a fixed and a pose-scheduled gain set (Kp, Kd of both axes, pitch Ki, friction compensation, "
+             "pitch feedforward scale), minimising on the thesis sinusoid and target runs (from 1 s) the mean plus "
+             "the largest of twelve ratios to the thesis law on the same draws (p90 and worst max error, median "
+             "mean error, per experiment and axis) subject to: no unstable run, the frozen-gain 400 Hz loop's "
+             "spectral radius < 0.999 at every pose of every draw, no more PWM saturation than the thesis law, "
+             "gains whose one-count quantisation moves the PWM by at most 10 counts; judged on --draws (seed "
+             "--seed) and --draws held out (seed --check-seed), 41 x 41 stability grid; writes the chosen design "
+             "(gains.json, gains.csv, gain_schedule.h with its law, gravity and friction feedforward), "
+             "tuning.json, tuning.png and tuning_gains.png")
+
+
+def add_tune_options(p) -> None:
+    """The ``--tune`` flag and its options on the ``schedule`` parser."""
+    p.add_argument("--tune", action="store_true", help=TUNE_HELP)
+    p.add_argument("--draws", type=count(8, 1024), default=64,
+                   help="--tune: plants drawn per judging set, seeded (8 to 1024, default 64)")
+    p.add_argument("--tune-draws", type=count(1, 1024), default=16,
+                   help="--tune: the first N of them the search simulates (default 16)")
+    p.add_argument("--seed", type=count(0, 2**32 - 1), default=0, help="--tune: seed of the tuning draws and the "
+                   "search (default 0)")
+    p.add_argument("--check-seed", type=count(0, 2**32 - 1), default=1,
+                   help="--tune: seed of the held-out draws (default 1)")
+    p.add_argument("--budget", type=finite(1, 86400, "s"), default=360.0,
+                   help="--tune: seconds of search, 40 %% fixed and 60 %% scheduled (default 360; the whole run adds "
+                        "about 3 minutes of draws and judging on 2 cores)")
+    p.add_argument("--workers", type=count(1, 64), default=min(2, os.cpu_count() or 1),
+                   help="--tune: processes scoring the candidates (default: 2, or 1 on one core)")
+
+
+def run_tune(args, model) -> None:
+    """``schedule psm --tune``: the design study, its files and summary."""
+    from rcm_kin.codegen.firmware_export import write_gain_schedule
+    from rcm_kin.control.stability import stability_survey
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.thesis import K_PITCH, K_ROLL
+    from rcm_kin.tuning.figures import gains_figure, study_figure
+    from rcm_kin.tuning.study import design_study
+
+    if args.grid not in (None, ["thesis"]) or args.insertion is not None:
+        raise RcmKinError("--tune designs on the thesis grid at the home insertion (roll -20,0,20 x pitch -15,0,15 "
+                          "deg, 80 mm): leave out --grid and --insertion")
+    if args.tune_draws > args.draws:
+        raise RcmKinError(f"--tune-draws ({args.tune_draws}) is at most --draws ({args.draws})")
+    folder = output_folder(args.out)
+    study = design_study(load_drive_parameters(args.params), args.draws, args.seed, args.check_seed, args.tune_draws,
+                         args.budget, args.workers, progress=progress_wanted(args) and sys.stderr.isatty())
+    survey = stability_survey(model, study.schedule, points=41)
+    files = write_gain_schedule(study.schedule, folder, survey, gravity_feedforward=True, friction_feedforward=True)
+    data = study.to_dict()
+    files.append(folder / "tuning.json")
+    write_text(files[-1], json.dumps(data, indent=1))
+    files.append(study_figure(study, folder / "tuning.png"))
+    files.append(gains_figure(study, {"roll": K_ROLL, "pitch": K_PITCH}, folder / "tuning_gains.png"))
+    emit(args, {"files": [str(f) for f in files], "chosen": study.chosen, "values": study.values,
+                "scores": data["scores"], "criteria": data["criteria"], "stable": survey.stable,
+                **survey.weakest(), "model": model.model_label, "input_unit": model.input_unit}, summary(data, files))
+
+
+def summary(data: dict, files) -> str:
+    """The study for people: the scores, the criteria and the chosen design."""
+    lines = [f"wrote {f}" for f in files]
+    lines.append(f"draws: {data['samples']} (seed {data['seeds']['tuning']}; tuned on the first "
+                 f"{data['tune_samples']}) and {data['samples']} held out (seed {data['seeds']['held_out']}); "
+                 f"{sum(data['rejected_as_inconsistent_with_holds'])} drawn sets skipped as against the measured holds")
+    for name, scores in data["scores"].items():
+        lines.append(f"score on the {name.replace('_', '-')} draws (thesis law 2.0, lower is better): "
+                     + ", ".join(f"{c} {v:.3f}" for c, v in scores.items()))
+    for name, met in data["criteria"].items():
+        failed = [k for k, v in met.items() if not v]
+        lines.append(f"{data['chosen']} design against the thesis law, {name.replace('_', '-')} draws: "
+                     + ("every criterion met" if not failed else f"NOT met: {', '.join(failed)}"))
+    lines.append(f"chosen: {data['chosen']} ("
+                 + ("the scheduled gains beat one gain set on both draw sets" if data["chosen"] == "scheduled"
+                    else
+                    "one gain set is as good on this robot: scheduling did not beat it by "
+                    f"{100 * data['schedule_margin']:g} % on both draw sets") + ")")
+    lines.append("  " + ", ".join(f"{k} {v:.4g}" for k, v in data["values"].items()))
+    return "\n".join(lines)

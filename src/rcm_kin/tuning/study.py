@@ -1,0 +1,175 @@
+"""The whole design: tune a fixed and a scheduled gain set, judge both beside the thesis law and the
+LQR/LQI schedule on the tuning draws and on draws the tuning never saw, and choose.
+
+:func:`design_study`:
+
+1. draws ``samples`` plants from seed ``seed`` (:func:`~rcm_kin.tuning.draws.build_draws`, the
+   frozen loops on the full ``points x points`` grid) and ``samples`` more from ``check_seed``;
+2. tunes the ``fixed`` space on the first ``tune_samples`` draws of the first set (their loops on a
+   9 x 9 grid), from the LQR/LQI design (``scheduled-friction``) and hand-picked starts, then the
+   ``scheduled`` space from the fixed winner (slopes 0), each within its share of ``budget_s``;
+3. judges the thesis law, the LQR/LQI schedule and both tuned designs on both draw sets in full:
+   tracking outcomes, the frozen 400 Hz loop's spectral radius at every pose of every draw, and the
+   issue's criteria (:func:`criteria`);
+4. chooses the scheduled design only where it beats the fixed one on both draw sets by at least
+   :data:`SCHEDULE_MARGIN` of the score; otherwise fixed gains are as good on this robot, and the
+   study says so.
+
+A :class:`DesignStudy` knows how to say itself (:meth:`~DesignStudy.to_dict`) and draw itself
+(:meth:`~DesignStudy.plot`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rcm_kin.control.gain_schedule import GainSchedule, scheduled_gains
+from rcm_kin.dynamics.drive import DriveParameters
+from rcm_kin.errors import RcmKinError
+from rcm_kin.simulation.controllers import ThesisController, make_controller
+from rcm_kin.simulation.experiments import psm_schedule
+from rcm_kin.tuning.design import DesignSpace, tuned_schedule
+from rcm_kin.tuning.draws import LOOP_POINTS, DrawSet, build_draws
+from rcm_kin.tuning.objective import RADIUS_LIMIT, Outcomes, evaluate, saturation_excess, score
+from rcm_kin.tuning.optimise import Search, loop_radius, tune, tuned_controller
+
+SCHEDULE_MARGIN = 0.02      # the scheduled design must score 2 % below the fixed one on both draw sets
+TUNE_POINTS = 9             # poses per axis of the stability grid while tuning (every 5th of 41)
+FIXED_SHARE = 0.4           # of the time budget, for the fixed space (the rest: the scheduled one)
+CONTROLLERS = ("thesis", "lqr", "fixed", "scheduled")
+HAND_START = {"roll_kp": 300.0, "roll_kd": -5.0, "pitch_kp": 150.0, "pitch_kd": -1.0, "pitch_ki": 300.0,
+              "roll_friction_pwm": 10.0, "pitch_friction_pwm": 10.0, "friction_ramp_deg_s": 2.0,
+              "pitch_feedforward": 1.0}
+
+
+def lqr_start(schedule: GainSchedule) -> dict[str, float]:
+    """The LQR/LQI schedule's design at the grid's centre as a point of the fixed space (its
+    friction compensation and model-inverse feedforward as designed)."""
+    j, i = schedule.pitch_deg.size // 2, schedule.roll_deg.size // 2
+    kr, kp = schedule.k_roll[j, i], schedule.k_pitch[j, i]
+    fc = schedule.friction
+    return {"roll_kp": kr[0], "roll_kd": kr[1], "pitch_kp": kp[0], "pitch_kd": kp[1], "pitch_ki": kp[2],
+            "roll_friction_pwm": fc.pwm[0], "pitch_friction_pwm": fc.pwm[1], "friction_ramp_deg_s": fc.ramp_deg_s,
+            "pitch_feedforward": 1.0}
+
+
+@dataclass(frozen=True)
+class Judged:
+    """One controller on one draw set: outcomes, the frozen loop's worst spectral radius over every
+    pose and draw (NaN for a law the linear loop does not model), and its score against the thesis."""
+
+    outcomes: Outcomes
+    radius: float
+    score: float
+
+
+@dataclass(frozen=True)
+class DesignStudy:
+    """What :func:`design_study` found (see the module's notes)."""
+
+    seeds: tuple[int, int]                     # tuning draws, held-out draws
+    samples: int
+    tune_samples: int
+    rejected: tuple[int, int]                  # drawn sets the holds ruled out, per draw set
+    searches: dict[str, Search]                # "fixed", "scheduled"
+    judged: dict[str, dict[str, Judged]]       # draw set ("tuning", "held_out") -> controller -> judged
+    chosen: str                                # "fixed" or "scheduled"
+    schedule: GainSchedule                     # the chosen design's tables (gain_schedule.h, gains.json)
+    points: int
+
+    @property
+    def values(self) -> dict[str, float]:
+        return self.searches[self.chosen].best.values
+
+    def criteria(self) -> dict[str, dict[str, bool]]:
+        """Per draw set, the issue's done-when criteria for the chosen design against the thesis law."""
+        return {name: criteria(sets[self.chosen], sets["thesis"]) for name, sets in self.judged.items()}
+
+    def to_dict(self) -> dict:
+        """The study as plain data (SI and firmware units as named in the keys)."""
+        def judged(j: Judged) -> dict:
+            o = j.outcomes
+            per_draw = {"max_error_deg": o.max_error_deg, "mean_error_deg": o.mean_error_deg,
+                        "saturation_s": o.saturation_s, "unstable": o.unstable}
+            return {"summary": o.summary(), "spectral_radius": None if np.isnan(j.radius) else j.radius,
+                    "score": j.score, "per_draw": {k: np.where(np.isnan(v), None, v).tolist() if v.dtype.kind == "f"
+                                                   else v.tolist() for k, v in per_draw.items()},
+                    "per_draw_axes": ["draw", "experiment", "axis (roll, pitch)"]}
+        searches = {kind: {"values": s.best.values, "score_tuning_subset": s.best.score,
+                           "evaluations": s.minimum.evaluations, "generations": len(s.minimum.history),
+                           "wall_s": s.minimum.wall_s, "stopped": s.minimum.stopped, "runs_per_s": s.runs_per_s,
+                           "history": list(s.minimum.history),
+                           "space": [vars(p) for p in s.space.parameters]} for kind, s in self.searches.items()}
+        scores = {name: {c: j.score for c, j in sets.items()} for name, sets in self.judged.items()}
+        return {"seeds": {"tuning": self.seeds[0], "held_out": self.seeds[1]}, "samples": self.samples,
+                "tune_samples": self.tune_samples, "rejected_as_inconsistent_with_holds": list(self.rejected),
+                "stability_points": self.points, "radius_limit": RADIUS_LIMIT, "chosen": self.chosen,
+                "experiments": list(self.judged["tuning"]["thesis"].outcomes.experiments),
+                "schedule_margin": SCHEDULE_MARGIN, "scores": scores, "values": self.values,
+                "criteria": self.criteria(), "searches": searches,
+                "judged": {name: {c: judged(j) for c, j in sets.items()} for name, sets in self.judged.items()}}
+
+
+def criteria(design: Judged, thesis: Judged) -> dict[str, bool]:
+    """The issue's criteria of ``design`` against ``thesis`` on one draw set: median max and mean
+    errors at or below the thesis's on both axes and experiments; the worst draw's max error no
+    worse; no unstable run; the frozen loop stable at every pose of every draw; saturation no more."""
+    d, t = design.outcomes, thesis.outcomes
+    with np.errstate(invalid="ignore"):
+        median = np.all(np.nanmedian(d.max_error_deg, 0) <= np.nanmedian(t.max_error_deg, 0)) and \
+            np.all(np.nanmedian(d.mean_error_deg, 0) <= np.nanmedian(t.mean_error_deg, 0))
+        worst = np.all(np.nanmax(d.max_error_deg, 0) <= np.nanmax(t.max_error_deg, 0))
+    return {"median_at_or_below_thesis": bool(median), "worst_no_worse": bool(worst),
+            "no_unstable_run": not bool(d.unstable.any()), "frozen_loop_stable": bool(design.radius < 1.0),
+            "saturation_no_more": saturation_excess(d, t) == 0.0}
+
+
+def judge_all(designs: dict[str, dict[str, float]], lqr: GainSchedule, base: GainSchedule,
+              draws: DrawSet) -> dict[str, Judged]:
+    """The thesis law, the LQR/LQI schedule (``scheduled-friction``) and the tuned ``designs`` on ``draws``."""
+    thesis = evaluate(ThesisController(), draws)
+    out = {"thesis": Judged(thesis, np.nan, score(thesis, thesis, 0.0))}
+    lqr_outcomes = evaluate(make_controller("scheduled-friction", lqr), draws)
+    radius = max(float(d.loops.spectral_radius(lqr_gains(lqr, d.loops.roll_deg, d.loops.pitch_deg)).max())
+                 for d in draws.draws)
+    out["lqr"] = Judged(lqr_outcomes, radius, score(lqr_outcomes, thesis, radius))
+    for kind, values in designs.items():
+        outcomes = evaluate(tuned_controller(tuned_schedule(base, values)), draws)
+        radius = loop_radius(values, draws)
+        out[kind] = Judged(outcomes, radius, score(outcomes, thesis, radius))
+    return out
+
+
+def lqr_gains(schedule: GainSchedule, roll_deg: np.ndarray, pitch_deg: np.ndarray) -> np.ndarray:
+    """The schedule's five loop gains (m, 5) at poses (deg), bilinear as the firmware."""
+    return np.array([np.r_[scheduled_gains(schedule, r, p)] for r, p in zip(roll_deg, pitch_deg)])
+
+
+def design_study(params: DriveParameters, samples: int = 64, seed: int = 0, check_seed: int = 1,
+                 tune_samples: int = 16, budget_s: float = 360.0, workers: int = 1, points: int = LOOP_POINTS,
+                 progress: bool = False) -> DesignStudy:
+    """The design study of the module's notes on the PSM with ``params``."""
+    if seed == check_seed:
+        raise RcmKinError(f"the held-out draws need a seed of their own, got {seed} for both", parameter="check_seed")
+    if not 1 <= tune_samples <= samples:
+        raise RcmKinError(f"tune_samples is 1 to samples ({samples}), got {tune_samples}", parameter="tune_samples")
+    if (points - 1) % (TUNE_POINTS - 1):
+        raise RcmKinError(f"points - 1 must be a multiple of {TUNE_POINTS - 1} (e.g. 41), got {points}",
+                          parameter="points")
+    lqr = psm_schedule(params)
+    sets = {"tuning": build_draws(params, samples, seed, points, progress=progress),
+            "held_out": build_draws(params, samples, check_seed, points, progress=progress)}
+    tuning = sets["tuning"].subset(tune_samples, TUNE_POINTS)
+    fixed = tune(lqr, tuning, DesignSpace("fixed"), seed, budget_s * FIXED_SHARE,
+                 start=(lqr_start(lqr), HAND_START), workers=workers, progress=progress)
+    scheduled = tune(lqr, tuning, DesignSpace("scheduled"), seed, budget_s * (1 - FIXED_SHARE),
+                     start=(fixed.best.values,), workers=workers, progress=progress)
+    searches = {"fixed": fixed, "scheduled": scheduled}
+    designs = {kind: s.best.values for kind, s in searches.items()}
+    judged = {name: judge_all(designs, lqr, lqr, draws) for name, draws in sets.items()}
+    better = all(j["scheduled"].score <= (1 - SCHEDULE_MARGIN) * j["fixed"].score for j in judged.values())
+    chosen = "scheduled" if better else "fixed"
+    return DesignStudy((seed, check_seed), samples, tune_samples, (sets["tuning"].rejected, sets["held_out"].rejected),
+                       searches, judged, chosen, tuned_schedule(lqr, designs[chosen]), points)
