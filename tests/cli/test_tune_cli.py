@@ -50,7 +50,7 @@ def test_the_written_design_runs_in_simulate(study):
 
 
 @pytest.mark.parametrize("words, text", [
-    (["schedule", "mtm", "--tune"], "--tune simulates the bundled PSM"),
+    (["schedule", "mtm", "--tune"], "mtm"),
     (["schedule", "psm", "--tune", "--grid=-20,0,20:-10,0,10"], "thesis grid"),
     (["schedule", "psm", "--tune", "--insertion", "0.1"], "thesis grid"),
     (["schedule", "psm", "--tune", "--draws", "8", "--tune-draws", "9"], "--tune-draws"),

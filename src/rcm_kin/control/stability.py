@@ -24,11 +24,13 @@ from rcm_kin.hardware import FIRMWARE_PERIOD, INSERTION_KP, ROLL_FILTER
 
 
 def firmware_loop_matrix(A: np.ndarray, B: np.ndarray, k_roll, k_pitch, period: float = FIRMWARE_PERIOD,
-                         roll_filter: float = ROLL_FILTER, insertion_kp: float = INSERTION_KP) -> np.ndarray:
+                         roll_filter: float = ROLL_FILTER, insertion_kp: float = INSERTION_KP,
+                         discrete: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The sampled closed loop ``xi[k+1] = Phi xi[k]`` (10, 10) about an equilibrium (reference at
     the equilibrium). ``xi = [x (6, SI); previous roll, pitch angle (rad); filtered roll velocity
-    (rad/s); pitch error integral (rad s)]``. Gains in firmware units and signs."""
-    Ad, Bd = zero_order_hold(A, B, period)
+    (rad/s); pitch error integral (rad s)]``. Gains in firmware units and signs. ``discrete``: the
+    model's ``(Ad, Bd)`` over ``period`` when already known (:func:`zero_order_hold` of ``A, B``)."""
+    Ad, Bd = zero_order_hold(A, B, period) if discrete is None else discrete
     # u[k] = G xi[k]: with y = x[:2], raw velocity (y - y_prev) / T, vf' = a vf + (1 - a) raw_roll,
     # z' = z - y_pitch T (e = -y), and u = -(Kp e + Kd v [+ Ki z']).
     a = roll_filter

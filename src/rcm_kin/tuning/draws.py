@@ -31,7 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG
-from rcm_kin.control.linearization import linearize_grid
+from rcm_kin.control.linearization import linearize_grid, zero_order_hold
 from rcm_kin.control.stability import firmware_loop_matrix
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.state_space import driven_dynamics, holding_pwm
@@ -98,9 +98,12 @@ def loop_family(model, roll_deg: np.ndarray, pitch_deg: np.ndarray, insertion: f
     P, R = np.meshgrid(pitch_deg, roll_deg, indexing="ij")
     Q = np.column_stack([np.radians(R.ravel()), np.radians(P.ravel()), np.full(R.size, insertion)])
     grid = linearize_grid(model, Q, compile=False)          # a drawn model, used once: no compiler run
+    held = [zero_order_hold(A, B, period) for A, B in zip(grid.A, grid.B)]   # once per pose, not per gain
     eye = np.eye(len(GAIN_NAMES))
-    F0 = np.array([firmware_loop_matrix(A, B, *_gains(np.zeros(5)), period) for A, B in zip(grid.A, grid.B)])
-    F = np.array([[firmware_loop_matrix(A, B, *_gains(e), period) for A, B in zip(grid.A, grid.B)] for e in eye])
+    F0 = np.array([firmware_loop_matrix(A, B, *_gains(np.zeros(5)), period, discrete=d)
+                   for A, B, d in zip(grid.A, grid.B, held)])
+    F = np.array([[firmware_loop_matrix(A, B, *_gains(e), period, discrete=d) for A, B, d in zip(grid.A, grid.B, held)]
+                  for e in eye])
     return LoopFamily(F0, F - F0[None], R.ravel(), P.ravel())
 
 

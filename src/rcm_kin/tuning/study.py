@@ -7,13 +7,18 @@ LQR/LQI schedule on the tuning draws and on draws the tuning never saw, and choo
    frozen loops on the full ``points x points`` grid) and ``samples`` more from ``check_seed``;
 2. tunes the ``fixed`` space on the first ``tune_samples`` draws of the first set (their loops on a
    9 x 9 grid), from the LQR/LQI design (``scheduled-friction``) and hand-picked starts, then the
-   ``scheduled`` space from the fixed winner (slopes 0), each within its share of ``budget_s``;
+   ``scheduled`` space from the fixed winner (slopes 0), each within its share of ``budget_s``; the
+   scheduled winner's gain set without its slopes replaces the fixed winner where it scores better
+   on the tuning draws (the scheduled search tuned the gains themselves too, for longer: the fixed
+   design it is held against is then tuned as long);
 3. judges the thesis law, the LQR/LQI schedule and both tuned designs on both draw sets in full:
    tracking outcomes, the frozen 400 Hz loop's spectral radius at every pose of every draw, and the
    issue's criteria (:func:`criteria`);
 4. chooses the scheduled design only where it beats the fixed one on both draw sets by at least
    :data:`SCHEDULE_MARGIN` of the score; otherwise fixed gains are as good on this robot, and the
-   study says so.
+   study says so;
+5. judges the chosen design with one structure taken out at a time, and the thesis law with its Kd
+   zeroed or flipped (:mod:`rcm_kin.tuning.structures`), on both draw sets.
 
 A :class:`DesignStudy` knows how to say itself (:meth:`~DesignStudy.to_dict`) and draw itself
 (:meth:`~DesignStudy.plot`).
@@ -25,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rcm_kin.control.gain_schedule import GainSchedule, scheduled_gains
+from rcm_kin.control.gain_schedule import GainSchedule
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.errors import RcmKinError
 from rcm_kin.simulation.controllers import ThesisController, make_controller
@@ -33,7 +38,8 @@ from rcm_kin.simulation.experiments import psm_schedule
 from rcm_kin.tuning.design import DesignSpace, tuned_schedule
 from rcm_kin.tuning.draws import LOOP_POINTS, DrawSet, build_draws
 from rcm_kin.tuning.objective import RADIUS_LIMIT, Outcomes, evaluate, saturation_excess, score
-from rcm_kin.tuning.optimise import Search, loop_radius, tune, tuned_controller
+from rcm_kin.tuning.optimise import Search, judge, loop_radius, tune, tuned_controller
+from rcm_kin.tuning.structures import judge_variants, table_gains
 
 SCHEDULE_MARGIN = 0.02      # the scheduled design must score 2 % below the fixed one on both draw sets
 TUNE_POINTS = 9             # poses per axis of the stability grid while tuning (every 5th of 41)
@@ -42,6 +48,11 @@ CONTROLLERS = ("thesis", "lqr", "fixed", "scheduled")
 HAND_START = {"roll_kp": 300.0, "roll_kd": -5.0, "pitch_kp": 150.0, "pitch_kd": -1.0, "pitch_ki": 300.0,
               "roll_friction_pwm": 10.0, "pitch_friction_pwm": 10.0, "friction_ramp_deg_s": 2.0,
               "pitch_feedforward": 1.0}
+
+
+def one_gain_set(values: dict[str, float]) -> dict[str, float]:
+    """A design of the fixed space: ``values`` without its pose slopes."""
+    return {p.name: values[p.name] for p in DesignSpace("fixed").parameters}
 
 
 def lqr_start(schedule: GainSchedule) -> dict[str, float]:
@@ -78,10 +89,13 @@ class DesignStudy:
     chosen: str                                # "fixed" or "scheduled"
     schedule: GainSchedule                     # the chosen design's tables (gain_schedule.h, gains.json)
     points: int
+    structures: dict[str, dict[str, dict]]     # draw set -> variant -> judged (:mod:`.structures`)
+
+    designs: dict[str, dict[str, float]]       # "fixed", "scheduled": the designs judged
 
     @property
     def values(self) -> dict[str, float]:
-        return self.searches[self.chosen].best.values
+        return self.designs[self.chosen]
 
     def criteria(self) -> dict[str, dict[str, bool]]:
         """Per draw set, the issue's done-when criteria for the chosen design against the thesis law."""
@@ -108,7 +122,9 @@ class DesignStudy:
                 "stability_points": self.points, "radius_limit": RADIUS_LIMIT, "chosen": self.chosen,
                 "experiments": list(self.judged["tuning"]["thesis"].outcomes.experiments),
                 "schedule_margin": SCHEDULE_MARGIN, "scores": scores, "values": self.values,
-                "criteria": self.criteria(), "searches": searches,
+                "criteria": self.criteria(), "searches": searches, "structures": self.structures,
+                "designs": self.designs, "fixed_design_from": "the fixed search" if self.designs["fixed"] ==
+                self.searches["fixed"].best.values else "the scheduled search's gain set without its slopes",
                 "judged": {name: {c: judged(j) for c, j in sets.items()} for name, sets in self.judged.items()}}
 
 
@@ -132,7 +148,7 @@ def judge_all(designs: dict[str, dict[str, float]], lqr: GainSchedule, base: Gai
     thesis = evaluate(ThesisController(), draws)
     out = {"thesis": Judged(thesis, np.nan, score(thesis, thesis, 0.0))}
     lqr_outcomes = evaluate(make_controller("scheduled-friction", lqr), draws)
-    radius = max(float(d.loops.spectral_radius(lqr_gains(lqr, d.loops.roll_deg, d.loops.pitch_deg)).max())
+    radius = max(float(d.loops.spectral_radius(table_gains(lqr, d.loops.roll_deg, d.loops.pitch_deg)).max())
                  for d in draws.draws)
     out["lqr"] = Judged(lqr_outcomes, radius, score(lqr_outcomes, thesis, radius))
     for kind, values in designs.items():
@@ -140,11 +156,6 @@ def judge_all(designs: dict[str, dict[str, float]], lqr: GainSchedule, base: Gai
         radius = loop_radius(values, draws)
         out[kind] = Judged(outcomes, radius, score(outcomes, thesis, radius))
     return out
-
-
-def lqr_gains(schedule: GainSchedule, roll_deg: np.ndarray, pitch_deg: np.ndarray) -> np.ndarray:
-    """The schedule's five loop gains (m, 5) at poses (deg), bilinear as the firmware."""
-    return np.array([np.r_[scheduled_gains(schedule, r, p)] for r, p in zip(roll_deg, pitch_deg)])
 
 
 def design_study(params: DriveParameters, samples: int = 64, seed: int = 0, check_seed: int = 1,
@@ -168,8 +179,13 @@ def design_study(params: DriveParameters, samples: int = 64, seed: int = 0, chec
                      start=(fixed.best.values,), workers=workers, progress=progress)
     searches = {"fixed": fixed, "scheduled": scheduled}
     designs = {kind: s.best.values for kind, s in searches.items()}
+    flat = judge(one_gain_set(designs["scheduled"]), lqr, tuning, fixed.baseline)
+    if flat.score < fixed.best.score:            # the scheduled search also tuned the gains themselves:
+        designs["fixed"] = flat.values           # its gain set without the slopes is a fixed set tuned as long
     judged = {name: judge_all(designs, lqr, lqr, draws) for name, draws in sets.items()}
     better = all(j["scheduled"].score <= (1 - SCHEDULE_MARGIN) * j["fixed"].score for j in judged.values())
     chosen = "scheduled" if better else "fixed"
+    structures = {name: judge_variants(lqr, designs[chosen], draws, judged[name]["thesis"].outcomes)
+                  for name, draws in sets.items()}
     return DesignStudy((seed, check_seed), samples, tune_samples, (sets["tuning"].rejected, sets["held_out"].rejected),
-                       searches, judged, chosen, tuned_schedule(lqr, designs[chosen]), points)
+                       searches, judged, chosen, tuned_schedule(lqr, designs[chosen]), points, structures, designs)
