@@ -232,12 +232,16 @@ def test_report_end_to_end(tmp_path, capsys):
     assert {"torque_map.png", "trend_curves.png", "torque_map.csv", "kinematic_checks.json", "stability_maps.png",
             "gain_schedule/gain_schedule.h", "linear_models.json", "psm.png", "psm_view.html", "mtm_view.html",
             "tracking/sine_errors.png", "tracking/target_animation.html", "davinci_view.html",
-            "safety_barriers.png", "mtm/torque_map.png", "mtm/linear_models.json"} <= set(links)
+            "safety_barriers.png", "mtm/torque_map.png", "mtm/linear_models.json", "tuning.png", "tuning_gains.png",
+            "tuned_gains/gains.json"} <= set(links)
     for link in links:
         assert not link.startswith("/") and (tmp_path / link).stat().st_size > 0, link
     for section in ("Kinematic self-checks", "Counterweight design", "Gain schedule", "Linear models per grid pose",
-                    "Tracking experiments", "Safety", "SOS barrier certificates", "The MTM"):
+                    "Tracking experiments", "Gains tuned by simulation", "Safety", "SOS barrier certificates",
+                    "The MTM"):
         assert section in index
+    order = [index.index(f"<h2>{h}") for h in ("Tracking experiments", "Gains tuned by simulation", "Robustness")]
+    assert order == sorted(order)
     assert str(tmp_path) not in index
     assert "report" in capsys.readouterr().err                # progress on stderr
 

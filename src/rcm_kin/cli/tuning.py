@@ -34,9 +34,12 @@ def add_tune_options(p) -> None:
                    "search (default 0)")
     p.add_argument("--check-seed", type=count(0, 2**32 - 1), default=1,
                    help="--tune: seed of the held-out draws (default 1)")
-    p.add_argument("--budget", type=finite(1, 86400, "s"), default=360.0,
-                   help="--tune: seconds of search, 40 %% fixed and 60 %% scheduled (default 360; the whole run adds "
+    p.add_argument("--budget", type=finite(1, 86400, "s"), default=300.0,
+                   help="--tune: seconds of search, 40 %% fixed and 60 %% scheduled (default 300; the whole run adds "
                         "about 3 minutes of draws and judging on 2 cores)")
+    p.add_argument("--generations", type=count(1, 100_000), default=None,
+                   help="--tune: each search also stops after G generations (the same seed then gives the same "
+                        "design on any machine; the shipped design: 12)")
     p.add_argument("--workers", type=count(1, 64), default=min(2, os.cpu_count() or 1),
                    help="--tune: processes scoring the candidates (default: 2, or 1 on one core)")
 
@@ -57,14 +60,15 @@ def run_tune(args, model) -> None:
         raise RcmKinError(f"--tune-draws ({args.tune_draws}) is at most --draws ({args.draws})")
     folder = output_folder(args.out)
     study = design_study(load_drive_parameters(args.params), args.draws, args.seed, args.check_seed, args.tune_draws,
-                         args.budget, args.workers, progress=progress_wanted(args) and sys.stderr.isatty())
+                         args.budget, args.workers, progress=progress_wanted(args) and sys.stderr.isatty(),
+                         generations=args.generations)
     survey = stability_survey(model, study.schedule, points=41)
     files = write_gain_schedule(study.schedule, folder, survey, gravity_feedforward=True, friction_feedforward=True)
     data = study.to_dict()
     files.append(folder / "tuning.json")
     write_text(files[-1], json.dumps(data, indent=1))
-    files.append(study_figure(study, folder / "tuning.png"))
-    files.append(gains_figure(study, {"roll": K_ROLL, "pitch": K_PITCH}, folder / "tuning_gains.png"))
+    files.append(study_figure(data, folder / "tuning.png"))
+    files.append(gains_figure(study.schedule, {"roll": K_ROLL, "pitch": K_PITCH}, folder / "tuning_gains.png"))
     emit(args, {"files": [str(f) for f in files], "chosen": study.chosen, "values": study.values,
                 "scores": data["scores"], "criteria": data["criteria"], "stable": survey.stable,
                 **survey.weakest(), "model": model.model_label, "input_unit": model.input_unit}, summary(data, files))

@@ -5,10 +5,12 @@ pictures and meshcat pages of the robots, the models and their kinematic self-ch
 maps with the thesis Fig 4.6/4.7 curves, the drive parameters and the counterweight designs, the
 MTM's torque map, counterweight and linear models, the linear models per grid pose, the model-based
 gain schedule beside the thesis's tables, the thesis's tracking experiments (P against the
-scheduled controller) with animations, the controllers' robustness to the parameter uncertainty (a
-small Monte Carlo, the same as `rcm-kin robustness` gives on Dask), and the safety filters and
-certificates. With a data folder: calibration, identification per pose, the grey-box fit, and the
-identified drive train against every step log (each also left out of the fit) on the measured logs.
+scheduled controller) with animations, the gains tuned by simulation (the shipped design on the
+nominal robot beside the thesis law and the LQR/LQI schedule, and its design study), the
+controllers' robustness to the parameter uncertainty (a small Monte Carlo, the same as `rcm-kin
+robustness` gives on Dask), and the safety filters and certificates. With a data folder:
+calibration, identification per pose, the grey-box fit, and the identified drive train against
+every step log (each also left out of the fit) on the measured logs.
 
 Each section computes a plain data object; :mod:`rcm_kin.report.render` renders them. The
 sections are cut into independent pieces (:func:`report_jobs`) that a process pool runs on the
@@ -83,8 +85,8 @@ def report_jobs(out: Path, data, map_points: int) -> list[Job]:
     together (each worker takes the next piece when it is free). CPU seconds of each piece alone
     in a fresh worker on this 2-core machine, its imports included (``benchmarks/bench_report.py``
     times them in the pool): tracking 4.2 per experiment, safety's PSM teleoperation 3.4,
-    robustness 3.3, safety's linear scenarios 2.7, effort maps 2.6, gain schedule 1.7, safety's
-    certificates 1.7, MuJoCo 1.2, robot views 1.2, models 0.3. The pieces that need the nominal
+    robustness 3.3, safety's linear scenarios 2.7, tuned gains 2.6, effort maps 2.6, gain schedule 1.7,
+    safety's certificates 1.7, MuJoCo 1.2, robot views 1.2, models 0.3. The pieces that need the nominal
     gain schedule design it once per worker (:func:`rcm_kin.simulation.experiments.psm_schedule`)."""
     from rcm_kin.report.sections.drive_train import drive_train_section
     from rcm_kin.report.sections.gravity import gravity_section
@@ -95,6 +97,7 @@ def report_jobs(out: Path, data, map_points: int) -> list[Job]:
     from rcm_kin.report.sections.robots import robots_section
     from rcm_kin.report.sections.robustness import robustness_section
     from rcm_kin.report.sections.safety import safety_checks, scenario_runs
+    from rcm_kin.report.sections.tuning import tuning_section
     from rcm_kin.safety.scenarios import SCENARIOS
 
     linear = tuple(s for s in SCENARIOS if s != "psm")      # the scenarios with a barrier figure, in one piece
@@ -109,6 +112,7 @@ def report_jobs(out: Path, data, map_points: int) -> list[Job]:
         Job("safety: PSM teleoperation", scenario_runs, (out, ("psm",))),
         Job("robustness", robustness_section, (out,)),
         Job("safety: linear scenarios", scenario_runs, (out, linear)),
+        Job("gains tuned by simulation", tuning_section, (out,)),
         Job("effort maps", gravity_section, (out, map_points)), Job("MTM", mtm_section, (out, map_points)),
         Job("gain schedule, linear models", _schedule_sections, (out,)),
         Job("safety: certificates, RCM", safety_checks, ()),
@@ -160,7 +164,7 @@ def _write_sections(out: Path, data, map_points: int, progress: bool, workers: i
                                results["safety: certificates, RCM"])
     sections = [results["robot views"], results["models checked"], results["effort maps"], results["MTM"], linear,
                 schedule,
-                tracking, results["robustness"], safety]
+                tracking, results["gains tuned by simulation"], results["robustness"], safety]
     sections += [s for s in [results["MuJoCo"]] if s is not None]   # with the [mujoco] extra
     if data is not None:
         sections.append(results["measured data"])

@@ -94,17 +94,22 @@ def loop_family(model, roll_deg: np.ndarray, pitch_deg: np.ndarray, insertion: f
                 period: float) -> LoopFamily:
     """The :class:`LoopFamily` of ``model`` (smooth, Coulomb friction left out) at every pose of the
     roll x pitch grid (deg), built from :func:`~rcm_kin.control.stability.firmware_loop_matrix`
-    itself at zero and unit gains."""
+    itself at zero and unit gains (the feedback rows once, the model's sampled input matrix per pose)."""
     P, R = np.meshgrid(pitch_deg, roll_deg, indexing="ij")
     Q = np.column_stack([np.radians(R.ravel()), np.radians(P.ravel()), np.full(R.size, insertion)])
     grid = linearize_grid(model, Q, compile=False)          # a drawn model, used once: no compiler run
-    held = [zero_order_hold(A, B, period) for A, B in zip(grid.A, grid.B)]   # once per pose, not per gain
-    eye = np.eye(len(GAIN_NAMES))
+    held = [zero_order_hold(A, B, period) for A, B in zip(grid.A, grid.B)]
     F0 = np.array([firmware_loop_matrix(A, B, *_gains(np.zeros(5)), period, discrete=d)
                    for A, B, d in zip(grid.A, grid.B, held)])
-    F = np.array([[firmware_loop_matrix(A, B, *_gains(e), period, discrete=d) for A, B, d in zip(grid.A, grid.B, held)]
-                  for e in eye])
-    return LoopFamily(F0, F - F0[None], R.ravel(), P.ravel())
+    # the feedback rows u = G(k) xi do not depend on the pose: read G from the same function with
+    # (Ad, Bd) = (0, [I; 0]), whose first rows are then G itself; the pose enters as Bd G
+    probe = (np.zeros((6, 6)), np.eye(6, 3))
+    G = np.array([firmware_loop_matrix(None, None, *_gains(k), period, discrete=probe)[:3]
+                  for k in np.vstack([np.zeros(len(GAIN_NAMES)), np.eye(len(GAIN_NAMES))])])
+    Bd = np.array([d[1] for d in held])
+    F = np.zeros((len(GAIN_NAMES),) + F0.shape)
+    F[:, :, :6] = np.einsum("mjc,icn->imjn", Bd, G[1:] - G[0])
+    return LoopFamily(F0, F, R.ravel(), P.ravel())
 
 
 @dataclass(frozen=True)

@@ -73,22 +73,26 @@ class Minimum:
     history: tuple[float, ...]
     evaluations: int
     wall_s: float
-    stopped: str                  # "converged" or "time budget"
+    stopped: str                  # "converged", "generations" or "time budget"
 
 
 def minimise(score, dimensions: int, seed: int = 0, budget_s: float = 240.0, popsize: int = 5,
              start: tuple[np.ndarray, ...] = (), workers: int = 1, label: str = "tune",
-             progress: bool = False, tol: float = 1e-3) -> Minimum:
+             progress: bool = False, tol: float = 1e-3, generations: int | None = None) -> Minimum:
     """Minimise ``score(x) -> float`` over the unit box ``[0, 1]^dimensions``: SciPy's differential
     evolution (``popsize x dimensions`` members, a Latin hypercube whose first members are the
     points ``start``, seed ``seed``, no gradient polish), stopped at the first generation that ends
-    past ``budget_s`` seconds or on convergence (relative spread ``tol``); ``workers`` > 1 scores each
+    past ``budget_s`` seconds, after ``generations`` generations when given (a stop that does not
+    depend on the machine's speed: the same seed then gives the same result anywhere), or on
+    convergence (relative spread ``tol``); ``workers`` > 1 scores each
     generation on that many forked processes (``score`` and what it reads inherited, not pickled).
     A progress bar (``label``) when ``progress``."""
     if not (np.isfinite(budget_s) and budget_s > 0):
         raise RcmKinError(f"the time budget is a positive number of seconds, got {budget_s}", parameter="budget_s")
     if not 1 <= workers <= 64:
         raise RcmKinError(f"workers is 1 to 64, got {workers}", parameter="workers")
+    if generations is not None and not 1 <= generations <= 100_000:
+        raise RcmKinError(f"generations is 1 to 100000, got {generations}", parameter="generations")
     if not 2 <= popsize <= 100 or popsize * dimensions < 5:
         raise RcmKinError(f"popsize is 2 to 100 members per dimension, and at least 5 members in all (SciPy's "
                           f"least), got {popsize} x {dimensions}", parameter="popsize")
@@ -106,6 +110,9 @@ def minimise(score, dimensions: int, seed: int = 0, budget_s: float = 240.0, pop
         history.append(float(intermediate_result.fun))
         bar.update(1)
         bar.set_postfix(best=f"{intermediate_result.fun:.4g}")
+        if generations is not None and len(history) >= generations:
+            stopped[0] = "generations"
+            return True
         if time.perf_counter() - started > budget_s:
             stopped[0] = "time budget"
             return True
@@ -145,7 +152,7 @@ class Search:
 
 def tune(base: GainSchedule, draws: DrawSet, space: DesignSpace, seed: int = 0, budget_s: float = 240.0,
          popsize: int = 5, start: tuple[dict[str, float], ...] = (), workers: int = 1,
-         progress: bool = False) -> Search:
+         progress: bool = False, generations: int | None = None) -> Search:
     """The design of ``space`` that minimises :func:`~rcm_kin.tuning.objective.score` on ``draws``
     against the thesis law (:func:`minimise`; ``start``: designs in the first generation)."""
     baseline = evaluate(ThesisController(), draws)
@@ -155,7 +162,7 @@ def tune(base: GainSchedule, draws: DrawSet, space: DesignSpace, seed: int = 0, 
         return judge(space.values(unit), base, draws, baseline).score
 
     minimum = minimise(score, len(space.parameters), seed, budget_s, popsize, tuple(space.unit(d) for d in start),
-                       workers, f"tune {space.kind}", progress)
+                       workers, f"tune {space.kind}", progress, generations=generations)
     cpu = time.process_time() - clock
     best = judge(space.values(minimum.x), base, draws, baseline)
     runs = minimum.evaluations * len(draws) * len(draws.references)

@@ -26,6 +26,7 @@ A :class:`DesignStudy` knows how to say itself (:meth:`~DesignStudy.to_dict`) an
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +34,7 @@ import numpy as np
 from rcm_kin.control.gain_schedule import GainSchedule
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.errors import RcmKinError
+from rcm_kin.model.loading import urdf_dir
 from rcm_kin.simulation.controllers import ThesisController, make_controller
 from rcm_kin.simulation.experiments import psm_schedule
 from rcm_kin.tuning.design import DesignSpace, tuned_schedule
@@ -41,6 +43,7 @@ from rcm_kin.tuning.objective import RADIUS_LIMIT, Outcomes, evaluate, saturatio
 from rcm_kin.tuning.optimise import Search, judge, loop_radius, tune, tuned_controller
 from rcm_kin.tuning.structures import judge_variants, table_gains
 
+SHIPPED_STUDY = urdf_dir() / "psm_tuned" / "tuning.json"   # the study behind the shipped tuned gains
 SCHEDULE_MARGIN = 0.02      # the scheduled design must score 2 % below the fixed one on both draw sets
 TUNE_POINTS = 9             # poses per axis of the stability grid while tuning (every 5th of 41)
 FIXED_SHARE = 0.4           # of the time budget, for the fixed space (the rest: the scheduled one)
@@ -92,6 +95,8 @@ class DesignStudy:
     structures: dict[str, dict[str, dict]]     # draw set -> variant -> judged (:mod:`.structures`)
 
     designs: dict[str, dict[str, float]]       # "fixed", "scheduled": the designs judged
+    budget_s: float = np.nan                   # the search's time budget (s)
+    generations: int | None = None             # and its limit of generations per search
 
     @property
     def values(self) -> dict[str, float]:
@@ -123,6 +128,7 @@ class DesignStudy:
                 "experiments": list(self.judged["tuning"]["thesis"].outcomes.experiments),
                 "schedule_margin": SCHEDULE_MARGIN, "scores": scores, "values": self.values,
                 "criteria": self.criteria(), "searches": searches, "structures": self.structures,
+                "budget_s": self.budget_s, "generations_limit": self.generations,
                 "designs": self.designs, "fixed_design_from": "the fixed search" if self.designs["fixed"] ==
                 self.searches["fixed"].best.values else "the scheduled search's gain set without its slopes",
                 "judged": {name: {c: judged(j) for c, j in sets.items()} for name, sets in self.judged.items()}}
@@ -159,9 +165,10 @@ def judge_all(designs: dict[str, dict[str, float]], lqr: GainSchedule, base: Gai
 
 
 def design_study(params: DriveParameters, samples: int = 64, seed: int = 0, check_seed: int = 1,
-                 tune_samples: int = 16, budget_s: float = 360.0, workers: int = 1, points: int = LOOP_POINTS,
-                 progress: bool = False) -> DesignStudy:
-    """The design study of the module's notes on the PSM with ``params``."""
+                 tune_samples: int = 16, budget_s: float = 300.0, workers: int = 1, points: int = LOOP_POINTS,
+                 progress: bool = False, generations: int | None = None) -> DesignStudy:
+    """The design study of the module's notes on the PSM with ``params`` (``generations``: each search
+    also stops after that many generations, :func:`~rcm_kin.tuning.optimise.minimise`)."""
     if seed == check_seed:
         raise RcmKinError(f"the held-out draws need a seed of their own, got {seed} for both", parameter="check_seed")
     if not 1 <= tune_samples <= samples:
@@ -174,9 +181,9 @@ def design_study(params: DriveParameters, samples: int = 64, seed: int = 0, chec
             "held_out": build_draws(params, samples, check_seed, points, progress=progress)}
     tuning = sets["tuning"].subset(tune_samples, TUNE_POINTS)
     fixed = tune(lqr, tuning, DesignSpace("fixed"), seed, budget_s * FIXED_SHARE,
-                 start=(lqr_start(lqr), HAND_START), workers=workers, progress=progress)
+                 start=(lqr_start(lqr), HAND_START), workers=workers, progress=progress, generations=generations)
     scheduled = tune(lqr, tuning, DesignSpace("scheduled"), seed, budget_s * (1 - FIXED_SHARE),
-                     start=(fixed.best.values,), workers=workers, progress=progress)
+                     start=(fixed.best.values,), workers=workers, progress=progress, generations=generations)
     searches = {"fixed": fixed, "scheduled": scheduled}
     designs = {kind: s.best.values for kind, s in searches.items()}
     flat = judge(one_gain_set(designs["scheduled"]), lqr, tuning, fixed.baseline)
@@ -188,4 +195,23 @@ def design_study(params: DriveParameters, samples: int = 64, seed: int = 0, chec
     structures = {name: judge_variants(lqr, designs[chosen], draws, judged[name]["thesis"].outcomes)
                   for name, draws in sets.items()}
     return DesignStudy((seed, check_seed), samples, tune_samples, (sets["tuning"].rejected, sets["held_out"].rejected),
-                       searches, judged, chosen, tuned_schedule(lqr, designs[chosen]), points, structures, designs)
+                       searches, judged, chosen, tuned_schedule(lqr, designs[chosen]), points, structures, designs,
+                       budget_s, generations)
+
+
+def read_study(path=None) -> dict:
+    """A design study as data (:meth:`DesignStudy.to_dict`; default :data:`SHIPPED_STUDY`, the study
+    ``rcm-kin schedule psm --tune`` wrote for the shipped tuned gains)."""
+    path = SHIPPED_STUDY if path is None else path
+    try:
+        data = json.loads(open(path).read())
+    except OSError as exc:
+        raise RcmKinError(f"cannot read the design study {path}: {exc.strerror}", parameter="path") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise RcmKinError(f"{path}: not a design study (not JSON: {exc})", parameter="path") from None
+    missing = [k for k in ("chosen", "judged", "experiments", "scores", "values") if k not in data] \
+        if isinstance(data, dict) else ["an object"]
+    if missing:
+        raise RcmKinError(f"{path}: not a design study of rcm-kin schedule psm --tune (no {', '.join(missing)})",
+                          parameter="path")
+    return data

@@ -34,7 +34,9 @@ class ScheduleSection:
     schedule: GainSchedule = field(repr=False, compare=False)   # for the sections that build on it
 
 
-def _gain_rows(s: GainSchedule) -> list[list[str]]:
+def gain_rows(s: GainSchedule) -> list[list[str]]:
+    """Per gain and pitch row of ``s``'s grid: its values per roll, then the thesis table's
+    (Tables 4.4-4.8; ``s`` on the thesis grid)."""
     names = [("roll Kp (PWM/deg)", s.k_roll[..., 0], K_ROLL[..., 0]),
              ("roll Kd (PWM/(deg/s))", s.k_roll[..., 1], K_ROLL[..., 1]),
              ("pitch Kp (PWM/deg)", s.k_pitch[..., 0], K_PITCH[..., 0]),
@@ -80,7 +82,7 @@ def schedule_section(out: Path, survey_points: int = 21) -> ScheduleSection:
     return ScheduleSection(
         insertion_mm=s.insertion * 1e3, weights=s.weights,
         files={name: relative(folder / name, out) for name in ("gains.json", "gains.csv", "gain_schedule.h")},
-        gains=Table.of(_gain_rows(s), ["gain", "pitch (deg)"] + [f"model, {r}" for r in roll_labels]
+        gains=Table.of(gain_rows(s), ["gain", "pitch (deg)"] + [f"model, {r}" for r in roll_labels]
                        + [f"thesis, {r}" for r in roll_labels]),
         thesis_source=f"{SOURCES['K_ROLL']}; {SOURCES['K_PITCH']}",
         survey_points=survey_points,
