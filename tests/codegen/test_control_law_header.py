@@ -17,6 +17,7 @@ import pytest
 
 from rcm_kin.codegen.firmware_export import gains_payload, header_text, write_gain_schedule
 from rcm_kin.control.friction import FrictionCompensation
+from rcm_kin.control.schedule_file import read_schedule_file
 from rcm_kin.firmware_rules import velocity_estimate
 from rcm_kin.simulation.controllers import Sample, StateFeedbackController
 from rcm_kin.simulation.experiments import (
@@ -157,6 +158,15 @@ def test_c_law_runs_the_simulated_loop_tick_for_tick(tmp_path, scheduled):
     """The shipped schedule with both feedforwards: the C command of every tick (settle included)
     equals the simulator's to 1e-9 counts and its integral the controller's memory."""
     run_both(tmp_path, psm_schedule(), scheduled, FirmwareSettings())
+
+
+@needs_compiler
+def test_c_law_runs_the_shipped_tuned_design_tick_for_tick(tmp_path):
+    """The shipped tuned design (urdf/psm_tuned/gains.json, read back as the simulator reads it):
+    the exported header reproduces the tuned law tick for tick."""
+    loaded = read_schedule_file()
+    assert loaded.flags == {"scheduled": True, "gravity": True, "track_velocity": True, "friction": True}
+    run_both(tmp_path, loaded.schedule, True, FirmwareSettings())
 
 
 @needs_compiler

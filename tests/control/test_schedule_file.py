@@ -56,6 +56,12 @@ def test_a_file_without_feedforwards_runs_without_them(tmp_path):
     (lambda d: d.__setitem__("controller", {"scheduled": "yes"}), "controller"),
     (lambda d: d.__setitem__("roll_deg", [0.0, -1.0, 2.0]), "roll_deg"),
     (lambda d: d.__setitem__("friction_feedforward", {"pwm": [1.0]}), "friction_feedforward"),
+    (lambda d: d.__setitem__("insertion_m", "80 mm"), "insertion_m"),
+    (lambda d: d.__setitem__("insertion_m", True), "insertion_m"),
+    (lambda d: d.pop("insertion_m"), "insertion_m"),
+    (lambda d: d.__setitem__("roll_deg", 3), "roll_deg"),
+    (lambda d: d.__setitem__("points", {}), "points"),
+    (lambda d: d["k_pitch"][1][1].__setitem__(2, 0.0), "Ki"),
 ])
 def test_a_file_that_does_not_fit_is_one_error_naming_the_key(written, tmp_path, edit, word):
     data = json.loads(written.read_text())

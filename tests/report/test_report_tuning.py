@@ -74,7 +74,7 @@ def synthetic_study(scheduled_scores=(0.299, 0.297), chosen="fixed") -> dict:
                                       "no_unstable_run": True, "frozen_loop_stable": True,
                                       "saturation_no_more": True}},
             "searches": searches, "structures": structures, "budget_s": 600.0, "generations_limit": 12,
-            "designs": designs, "fixed_design_from": "the fixed search", "judged": judged}
+            "designs": designs, "judged": judged}
 
 
 @pytest.fixture(scope="module")
@@ -207,7 +207,7 @@ def test_an_early_study_without_structures_or_budget(tmp_path, gain_file):
     from rcm_kin.report.sections.tuning import reproducing_command, tuning_section
 
     study = copy.deepcopy(synthetic_study())
-    for key in ("structures", "designs", "fixed_design_from", "budget_s", "generations_limit"):
+    for key in ("structures", "designs", "budget_s", "generations_limit"):
         del study[key]
     s = tuning_section(tmp_path, _write(tmp_path, study), gain_file)
     assert s.structures is None and s.budget_s is None and s.command == "rcm-kin schedule psm --tune --out tuned"

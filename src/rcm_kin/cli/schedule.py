@@ -21,7 +21,7 @@ from rcm_kin.cli.common import (
 )
 from rcm_kin.cli.control import model_line
 from rcm_kin.cli.statics import joint_assignments
-from rcm_kin.cli.tuning import add_tune_options, run_tune
+from rcm_kin.cli.tuning import add_tune_options, check_tune_options, run_tune
 from rcm_kin.control.friction import DEFAULT_RAMP_DEG_S
 from rcm_kin.control.weights import Weights
 from rcm_kin.dynamics.drive import DRIVEN
@@ -73,6 +73,7 @@ def add_schedule(sub) -> None:
 
 
 def cmd_schedule(args) -> None:
+    check_tune_options(args, asdict(Weights()))
     model = driven_model(args.params, coulomb=False, robot=args.robot)
     if not model.pwm_input:
         raise RcmKinError(f"schedule needs a drive: {model.robot} has no drive parameter file (a drive key in its "

@@ -9,6 +9,7 @@ import sys
 
 from rcm_kin.atomic import write_text
 from rcm_kin.cli.common import count, emit, finite, progress_wanted
+from rcm_kin.control.friction import DEFAULT_RAMP_DEG_S
 from rcm_kin.errors import RcmKinError, output_folder
 
 TUNE_HELP = ("tune the firmware law by simulation instead of designing it by LQR/LQI: differential evolution "
@@ -16,9 +17,10 @@ TUNE_HELP = ("tune the firmware law by simulation instead of designing it by LQR
              "pitch feedforward scale), minimising on the thesis sinusoid and target runs (from 1 s) the mean plus "
              "the largest of twelve ratios to the thesis law on the same draws (p90 and worst max error, median "
              "mean error, per experiment and axis) subject to: no unstable run, the frozen-gain 400 Hz loop's "
-             "spectral radius < 0.999 at every pose of every draw, no more PWM saturation than the thesis law, "
-             "gains whose one-count quantisation moves the PWM by at most 10 counts; judged on --draws (seed "
-             "--seed) and --draws held out (seed --check-seed), 41 x 41 stability grid; writes the chosen design "
+             "spectral radius < 0.999 at every pose of a 9 x 9 grid of every tuned-on draw, no more PWM saturation "
+             "than the thesis law, gains whose one-count quantisation moves the PWM by at most 10 counts; then "
+             "the Kp slopes over roll and pitch from that gain set; the design is chosen on --draws (seed --seed) "
+             "and checked on --draws held out (seed --check-seed), the loop on 41 x 41 poses; writes the chosen design "
              "(gains.json, gains.csv, gain_schedule.h with its law, gravity and friction feedforward), "
              "tuning.json, tuning.png and tuning_gains.png")
 
@@ -26,22 +28,49 @@ TUNE_HELP = ("tune the firmware law by simulation instead of designing it by LQR
 def add_tune_options(p) -> None:
     """The ``--tune`` flag and its options on the ``schedule`` parser."""
     p.add_argument("--tune", action="store_true", help=TUNE_HELP)
-    p.add_argument("--draws", type=count(8, 1024), default=64,
+    p.add_argument("--draws", type=count(8, 1024), default=None,
                    help="--tune: plants drawn per judging set, seeded (8 to 1024, default 64)")
-    p.add_argument("--tune-draws", type=count(1, 1024), default=16,
+    p.add_argument("--tune-draws", type=count(1, 1024), default=None,
                    help="--tune: the first N of them the search simulates (default 16)")
-    p.add_argument("--seed", type=count(0, 2**32 - 1), default=0, help="--tune: seed of the tuning draws and the "
+    p.add_argument("--seed", type=count(0, 2**32 - 1), default=None, help="--tune: seed of the tuning draws and the "
                    "search (default 0)")
-    p.add_argument("--check-seed", type=count(0, 2**32 - 1), default=1,
+    p.add_argument("--check-seed", type=count(0, 2**32 - 1), default=None,
                    help="--tune: seed of the held-out draws (default 1)")
-    p.add_argument("--budget", type=finite(1, 86400, "s"), default=300.0,
-                   help="--tune: seconds of search, 40 %% fixed and 60 %% scheduled (default 300; the whole run adds "
-                        "about 3 minutes of draws and judging on 2 cores)")
+    p.add_argument("--budget", type=finite(1, 86400, "s"), default=None,
+                   help="--tune: seconds of search, 60 %% the gain set and 40 %% its pose slopes (default 300; the "
+                        "whole run adds about 3 minutes of draws and judging on 2 cores)")
     p.add_argument("--generations", type=count(1, 100_000), default=None,
                    help="--tune: each search also stops after G generations (the same seed then gives the same "
                         "design on any machine; the shipped design: 12)")
-    p.add_argument("--workers", type=count(1, 64), default=min(2, os.cpu_count() or 1),
+    p.add_argument("--workers", type=count(1, 64), default=None,
                    help="--tune: processes scoring the candidates (default: 2, or 1 on one core)")
+
+
+TUNE_OPTIONS = {"draws": 64, "tune_draws": 16, "seed": 0, "check_seed": 1, "budget": 300.0, "generations": None,
+                "workers": min(2, os.cpu_count() or 1)}      # their defaults
+LQR_OPTIONS = ("friction_ramp", "check_points", "gravity_feedforward", "friction_feedforward")
+
+
+def check_tune_options(args, weights: dict) -> None:
+    """Refuse the --tune options without --tune, and the LQR/LQI design's options with it (each
+    would be silently ignored); fill the --tune options' defaults."""
+    given = [name for name in TUNE_OPTIONS if getattr(args, name) is not None]
+    if not args.tune:
+        if given:
+            raise RcmKinError(f"--{given[0].replace('_', '-')} is an option of --tune (the LQR/LQI design has no "
+                              "draws, seeds or search)")
+        return
+    lqr = [name for name in LQR_OPTIONS if getattr(args, name) not in (None, False, DEFAULT_RAMP_DEG_S)]
+    lqr += [name for name, value in weights.items() if getattr(args, name) != value]
+    if lqr:
+        raise RcmKinError(f"--{lqr[0].replace('_', '-')} is an option of the LQR/LQI design: --tune chooses the gains "
+                          "and friction compensation itself, always with the gravity and friction feedforward, and "
+                          "checks the loop on 41 x 41 poses")
+    for name, value in TUNE_OPTIONS.items():
+        if getattr(args, name) is None:
+            setattr(args, name, value)
+    if args.seed == args.check_seed:
+        raise RcmKinError(f"--check-seed must differ from --seed (the held-out draws), got {args.seed} for both")
 
 
 def run_tune(args, model) -> None:

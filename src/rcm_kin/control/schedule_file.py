@@ -73,8 +73,11 @@ def read_schedule_file(path: str | Path | None = None) -> ScheduleFile:
     """The schedule in ``path`` (default :data:`SHIPPED_TUNED`) and its law's options (see the module's notes)."""
     path = Path(path) if path is not None else SHIPPED_TUNED
     raw = _read(path)
-    roll = _table(raw, "roll_deg", (len(raw.get("roll_deg", ())),), path)
-    pitch = _table(raw, "pitch_deg", (len(raw.get("pitch_deg", ())),), path)
+    for key in ("roll_deg", "pitch_deg", "points"):
+        if not isinstance(raw.get(key), list):
+            raise _fail(path, "a list is expected", key)
+    roll = _table(raw, "roll_deg", (len(raw["roll_deg"]),), path)
+    pitch = _table(raw, "pitch_deg", (len(raw["pitch_deg"]),), path)
     if roll.size < 2 or pitch.size < 2 or np.any(np.diff(roll) <= 0) or np.any(np.diff(pitch) <= 0):
         raise _fail(path, "the grids need at least 2 strictly increasing values", "roll_deg/pitch_deg")
     grid = (pitch.size, roll.size)
@@ -96,8 +99,15 @@ def read_schedule_file(path: str | Path | None = None) -> ScheduleFile:
         weights = Weights(**raw.get("weights", {}))
     except TypeError:
         raise _fail(path, "unknown weight names", "weights") from None
-    schedule = GainSchedule(roll, pitch, float(raw.get("insertion_m", np.nan)),
-                            _table(raw, "k_roll", (*grid, 2), path), _table(raw, "k_pitch", (*grid, 3), path), u_hold,
+    insertion = raw.get("insertion_m")
+    if isinstance(insertion, bool) or not isinstance(insertion, (int, float)) or not np.isfinite(insertion):
+        raise _fail(path, "the insertion of the models, a number of metres, is expected", "insertion_m")
+    k_pitch = _table(raw, "k_pitch", (*grid, 3), path)
+    if np.any(k_pitch[..., 2] <= 0):
+        raise _fail(path, "the pitch Ki must be > 0 PWM/(deg s) at every grid point (the law's integral holds the "
+                    "pose with it)", "k_pitch")
+    schedule = GainSchedule(roll, pitch, float(insertion),
+                            _table(raw, "k_roll", (*grid, 2), path), k_pitch, u_hold,
                             _table(raw, "ff_pitch", (*grid, 2), path), models["A"], models["B"], models["A_cl"],
                             weights, friction)
     flags = {"scheduled": True, "gravity": has["gravity"], "track_velocity": True, "friction": has["friction"]}
@@ -112,6 +122,4 @@ def read_schedule_file(path: str | Path | None = None) -> ScheduleFile:
     for name in ("gravity", "friction"):
         if flags[name] and not has[name]:
             raise _fail(path, f"the law adds the {name} feedforward but the file has no table of it", "controller")
-    if not np.isfinite(schedule.insertion):
-        raise _fail(path, "the insertion of the models (m) is missing", "insertion_m")
     return ScheduleFile(schedule, flags, path)

@@ -30,9 +30,9 @@ import numpy as np
 from rcm_kin.control.friction import FrictionCompensation
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, closed_loop_matrix
 from rcm_kin.errors import RcmKinError
-from rcm_kin.hardware import ENCODER_COUNT, FIRMWARE_PERIOD, ROLL_FILTER
+from rcm_kin.hardware import ENCODER_COUNT, FIRMWARE_PERIOD, PWM_LIMIT, ROLL_FILTER
 
-PWM_PER_COUNT = 10.0     # PWM counts one encoder count may move through a gain (10 % of the roll's range)
+PWM_PER_COUNT = 0.1 * PWM_LIMIT[0]   # PWM counts one encoder count may move through a gain: 10 % of the roll's range
 VELOCITY_COUNT = ENCODER_COUNT[:2] / FIRMWARE_PERIOD * np.array([1 - ROLL_FILTER, 1.0])  # deg/s of one count
 
 
@@ -80,24 +80,28 @@ FIXED = (
     Parameter("pitch_kd", -_kd(1), 0.0, "PWM/(deg/s)", _QUANTUM + " (velocity over one period); <= 0: damping"),
     Parameter("pitch_ki", 1.0, 3000.0, "PWM/(deg s)", "from the thesis's order (0.15) to beyond the LQI's (300)",
               log=True),
-    Parameter("roll_friction_pwm", 0.0, 40.0, "PWM", "up to 3x the identified sliding friction (about 12 PWM)"),
-    Parameter("pitch_friction_pwm", 0.0, 40.0, "PWM", "up to 3x the identified sliding friction (about 13 PWM)"),
+    Parameter("roll_friction_pwm", 0.0, 40.0, "PWM", "about 3x the sliding friction the shipped drive file "
+              "identifies (11.7 PWM)"),
+    Parameter("pitch_friction_pwm", 0.0, 40.0, "PWM", "about 3x the sliding friction the shipped drive file "
+              "identifies (13.3 PWM)"),
     Parameter("friction_ramp_deg_s", 0.5, 40.0, "deg/s", "a few velocity counts to the sinusoid's peak speed",
               log=True),
     Parameter("pitch_feedforward", 0.0, 2.0, "1", "scale of the model inverse F_v rdot + F_a rddot (1: as designed)"),
 )
-SCHEDULED = FIXED + (
+SLOPES = (
     Parameter("roll_kp_roll_slope", -0.5, 0.5, "1", "relative change of roll Kp from the grid's centre to roll +20"),
     Parameter("roll_kp_pitch_slope", -0.5, 0.5, "1", "relative change of roll Kp to pitch +15 deg"),
     Parameter("pitch_kp_roll_slope", -0.5, 0.5, "1", "relative change of pitch Kp to roll +20 deg"),
     Parameter("pitch_kp_pitch_slope", -0.5, 0.5, "1", "relative change of pitch Kp to pitch +15 deg"),
 )
-SPACES = {"fixed": FIXED, "scheduled": SCHEDULED}
+SCHEDULED = FIXED + SLOPES
+SPACES = {"fixed": FIXED, "scheduled": SCHEDULED, "slopes": SLOPES}
 
 
 @dataclass(frozen=True)
 class DesignSpace:
-    """The parameters one tuning searches (``fixed`` or ``scheduled``, :data:`SPACES`)."""
+    """The parameters one tuning searches (:data:`SPACES`: ``fixed``, ``scheduled``, or ``slopes``
+    alone, the rest of a design held)."""
 
     kind: str = "scheduled"
 
@@ -124,6 +128,18 @@ class DesignSpace:
     def unit(self, values: dict[str, float]) -> np.ndarray:
         """The unit-box point of a design given by name (missing slopes 0)."""
         return np.array([p.to_unit(values.get(p.name, 0.0)) for p in self.parameters])
+
+
+def bounds_excess(values: dict[str, float]) -> float:
+    """How far (relative, summed) the scheduled proportional gains leave their parameter's bounds at
+    the thesis grid's corners, where the slopes act most (0 inside: the slopes may not carry a gain
+    past what the quantisation bound allows)."""
+    corners = pose_gains(values, np.array([-20.0, -20.0, 20.0, 20.0]), np.array([-15.0, 15.0, -15.0, 15.0]))
+    excess = 0.0
+    for column, p in ((0, FIXED[0]), (2, FIXED[2])):
+        k = corners[:, column]
+        excess += float(np.sum(np.clip(k / p.high - 1, 0, None)) + np.sum(np.clip(1 - k / p.low, 0, None)))
+    return excess
 
 
 def gain_tables(values: dict[str, float], roll_deg, pitch_deg) -> tuple[np.ndarray, np.ndarray]:

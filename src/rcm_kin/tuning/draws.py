@@ -144,7 +144,7 @@ class DrawSet:
     def subset(self, samples: int, points: int) -> DrawSet:
         """The first ``samples`` draws with their loops on every k-th pose, ``points`` per axis
         (``points - 1`` must divide this set's ``points - 1``): a cheaper set to tune on."""
-        step, rest = divmod(self.points - 1, points - 1) if points > 1 else (0, 1)
+        step, rest = divmod(self.points - 1, points - 1) if points >= 2 else (0, 1)
         if rest or not 1 <= samples <= len(self):
             raise RcmKinError(f"a subset of 1 to {len(self)} draws on a grid of n points with (n - 1) dividing "
                               f"{self.points - 1}, got {samples} draws on {points}", parameter=("samples", "points"))

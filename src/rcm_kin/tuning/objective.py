@@ -9,14 +9,16 @@ The objective (:func:`score`) compares two :class:`Outcomes` on the same draws, 
 baseline's (the thesis law's): for every experiment and axis, three ratios design / baseline, of the
 90th percentile of the max error, of the median of the mean error and of the worst draw's max
 error; the objective is the mean of the twelve ratios plus the largest (so no criterion is traded
-away for the others), below 2 where the design beats the baseline on every one. Constraints add
-penalties of at least :data:`PENALTY`: any unstable run; a frozen-gain 400 Hz loop with a spectral
-radius of :data:`RADIUS_LIMIT` or more at any pose of any draw's grid; more time at the PWM limit
-than the baseline's, per experiment and axis, summed over the draws.
+away for the others), below 2 where the design beats the baseline on every one
+(:func:`tracking_score`). Constraints add penalties of at least :data:`PENALTY`: any unstable run
+(ten times that); a frozen-gain 400 Hz loop with a spectral radius of :data:`RADIUS_LIMIT` or more at
+any pose of any draw's grid; more time at the PWM limit than the baseline's, per experiment and
+axis, summed over the draws; gains beyond their bounds.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,15 +50,28 @@ class Outcomes:
         worst of the mean error (over the stable runs), the saturation summed over draws, and the
         unstable runs."""
         out = {}
-        for k, experiment in enumerate(self.experiments):
-            for a, axis in enumerate(AXES):
-                mx, mean = self.max_error_deg[:, k, a], self.mean_error_deg[:, k, a]
-                out[f"{experiment}.{axis}"] = {
-                    "median_max_deg": float(np.nanmedian(mx)), "p90_max_deg": float(np.nanpercentile(mx, 90)),
-                    "worst_max_deg": float(np.nanmax(mx)), "median_mean_deg": float(np.nanmedian(mean)),
-                    "worst_mean_deg": float(np.nanmax(mean)), "saturation_s": float(self.saturation_s[:, k, a].sum()),
-                    "unstable_runs": int(self.unstable[:, k].sum())}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)      # no stable run: NaN, written as None
+            for k, experiment in enumerate(self.experiments):
+                out.update(self._entries(k, experiment))
         return out
+
+    def _entries(self, k: int, experiment: str) -> dict:
+        """:meth:`summary`'s entries of experiment ``k`` (called with NaN warnings silenced)."""
+        out = {}
+        for a, axis in enumerate(AXES):
+            mx, mean = self.max_error_deg[:, k, a], self.mean_error_deg[:, k, a]
+            out[f"{experiment}.{axis}"] = _finite_or_none({
+                "median_max_deg": float(np.nanmedian(mx)), "p90_max_deg": float(np.nanpercentile(mx, 90)),
+                "worst_max_deg": float(np.nanmax(mx)), "median_mean_deg": float(np.nanmedian(mean)),
+                "worst_mean_deg": float(np.nanmax(mean)), "saturation_s": float(self.saturation_s[:, k, a].sum()),
+                "unstable_runs": int(self.unstable[:, k].sum())})
+        return out
+
+
+def _finite_or_none(entry: dict) -> dict:
+    """NaN (no stable run) as None: strict JSON."""
+    return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in entry.items()}
 
 
 def evaluate(controller, draws: DrawSet, skip: float = SKIP_S) -> Outcomes:
@@ -88,7 +103,8 @@ def ratios(design: Outcomes, baseline: Outcomes) -> np.ndarray:
 
 def statistics(o: Outcomes) -> np.ndarray:
     """(experiment, axis, [p90 max, median mean, worst max]) over the stable runs."""
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)          # an outcome without a stable run: NaN
         return np.stack([np.nanpercentile(o.max_error_deg, 90, axis=0), np.nanmedian(o.mean_error_deg, axis=0),
                          np.nanmax(o.max_error_deg, axis=0)], axis=-1)
 
@@ -100,16 +116,29 @@ def saturation_excess(design: Outcomes, baseline: Outcomes) -> float:
     return float(np.clip(excess, 0, None).sum())
 
 
-def score(design: Outcomes, baseline: Outcomes, radius: float) -> float:
-    """The objective of the module's notes (lower is better); ``radius`` the largest frozen-loop
-    spectral radius over the draws' grids."""
+def tracking_score(design: Outcomes, baseline: Outcomes) -> float:
+    """The mean plus the largest of the twelve :func:`ratios` (the stable runs'; 2 for the baseline
+    itself), without the constraints' penalties."""
     r = ratios(design, baseline)
-    if design.unstable.any() or np.any(np.isinf(r)):
-        return PENALTY * (2 + design.unstable.mean())
-    value = float(np.nanmean(r) + np.nanmax(r))
+    r = r[np.isfinite(r)]
+    return float(r.mean() + r.max()) if r.size else np.inf
+
+
+def score(design: Outcomes, baseline: Outcomes, radius: float, bounds: float = 0.0) -> float:
+    """The objective of the module's notes (lower is better): :func:`tracking_score` plus each
+    violated constraint's penalty, added (so more violations always cost more): unstable runs
+    ``10 PENALTY (1 + their fraction)``, above any stable design's; a frozen-loop ``radius`` (the
+    largest over the draws' grids) at :data:`RADIUS_LIMIT` or more; saturation beyond the
+    baseline's; ``bounds`` > 0, gains beyond their bounds (:func:`~rcm_kin.tuning.design.bounds_excess`)."""
+    tracking = tracking_score(design, baseline)
+    value = tracking if np.isfinite(tracking) else 10 * PENALTY
+    if design.unstable.any():
+        value += 10 * PENALTY * (1 + design.unstable.mean())
     if radius >= RADIUS_LIMIT:
         value += PENALTY + 1000 * (radius - RADIUS_LIMIT)
     excess = saturation_excess(design, baseline)
     if excess > 0:
         value += PENALTY + excess
-    return value
+    if bounds > 0:
+        value += PENALTY + 100 * bounds
+    return float(value)

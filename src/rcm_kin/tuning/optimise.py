@@ -22,7 +22,7 @@ from tqdm import tqdm
 from rcm_kin.control.gain_schedule import GainSchedule
 from rcm_kin.errors import RcmKinError
 from rcm_kin.simulation.controllers import TUNED, StateFeedbackController, ThesisController
-from rcm_kin.tuning.design import DesignSpace, pose_gains, tuned_schedule
+from rcm_kin.tuning.design import DesignSpace, bounds_excess, pose_gains, tuned_schedule
 from rcm_kin.tuning.draws import DrawSet
 from rcm_kin.tuning.objective import Outcomes, evaluate, score
 
@@ -60,7 +60,7 @@ def judge(values: dict[str, float], base: GainSchedule, draws: DrawSet, baseline
     """The design ``values`` on ``draws`` against ``baseline`` (the thesis law's outcomes)."""
     radius = loop_radius(values, draws)
     outcomes = evaluate(tuned_controller(tuned_schedule(base, values)), draws)
-    return Candidate(values, outcomes, radius, score(outcomes, baseline, radius))
+    return Candidate(values, outcomes, radius, score(outcomes, baseline, radius, bounds_excess(values)))
 
 
 @dataclass(frozen=True)
@@ -152,19 +152,21 @@ class Search:
 
 def tune(base: GainSchedule, draws: DrawSet, space: DesignSpace, seed: int = 0, budget_s: float = 240.0,
          popsize: int = 5, start: tuple[dict[str, float], ...] = (), workers: int = 1,
-         progress: bool = False, generations: int | None = None) -> Search:
+         progress: bool = False, generations: int | None = None, held: dict[str, float] | None = None) -> Search:
     """The design of ``space`` that minimises :func:`~rcm_kin.tuning.objective.score` on ``draws``
-    against the thesis law (:func:`minimise`; ``start``: designs in the first generation)."""
+    against the thesis law (:func:`minimise`; ``start``: designs in the first generation; ``held``:
+    the values of a design's parameters ``space`` does not search, kept as they are)."""
     baseline = evaluate(ThesisController(), draws)
     clock = time.process_time()
+    held = dict(held or {})
 
     def score(unit: np.ndarray) -> float:
-        return judge(space.values(unit), base, draws, baseline).score
+        return judge({**held, **space.values(unit)}, base, draws, baseline).score
 
     minimum = minimise(score, len(space.parameters), seed, budget_s, popsize, tuple(space.unit(d) for d in start),
                        workers, f"tune {space.kind}", progress, generations=generations)
     cpu = time.process_time() - clock
-    best = judge(space.values(minimum.x), base, draws, baseline)
+    best = judge({**held, **space.values(minimum.x)}, base, draws, baseline)
     runs = minimum.evaluations * len(draws) * len(draws.references)
     rate = runs / (minimum.wall_s * workers) if workers > 1 else runs / max(cpu, 1e-9)
     return Search(best, space, baseline, minimum, rate)

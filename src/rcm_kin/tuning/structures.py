@@ -20,11 +20,12 @@ import dataclasses
 import numpy as np
 
 from rcm_kin.control.gain_schedule import GainSchedule, scheduled_gains
+from rcm_kin.errors import RcmKinError
 from rcm_kin.simulation.controllers import StateFeedbackController
 from rcm_kin.thesis import K_PITCH, K_ROLL
 from rcm_kin.tuning.design import tuned_schedule
 from rcm_kin.tuning.draws import DrawSet
-from rcm_kin.tuning.objective import Outcomes, evaluate, score
+from rcm_kin.tuning.objective import Outcomes, evaluate, score, tracking_score
 from rcm_kin.tuning.optimise import tuned_controller
 
 DESIGN_VARIANTS = {
@@ -67,15 +68,33 @@ def structure_variants(base: GainSchedule, values: dict[str, float]) -> dict[str
     return out
 
 
+def table_radius(schedule: GainSchedule, draws: DrawSet) -> float:
+    """The largest frozen-loop spectral radius of ``schedule``'s tables over every pose of every draw
+    (the draws share their grid of poses: the gains are interpolated once)."""
+    if not draws.draws:
+        return np.nan
+    first = draws.draws[0].loops
+    gains = table_gains(schedule, first.roll_deg, first.pitch_deg)
+    for d in draws.draws:
+        same = np.array_equal(d.loops.roll_deg, first.roll_deg) and np.array_equal(d.loops.pitch_deg, first.pitch_deg)
+        if not same:
+            raise RcmKinError("the draws' stability grids differ: build them in one DrawSet", parameter="draws")
+    return max(float(d.loops.spectral_radius(gains).max()) for d in draws.draws)
+
+
 def judge_variants(base: GainSchedule, values: dict[str, float], draws: DrawSet,
                    thesis: Outcomes) -> dict[str, dict]:
     """Each variant on ``draws``: its score against ``thesis`` (the thesis law's outcomes there), the
-    frozen loop's worst spectral radius, its unstable runs and its outcome summary."""
-    out = {}
+    frozen loop's worst spectral radius (once per distinct set of tables: a feedforward or a flag
+    leaves the loop as it is), its unstable runs and its outcome summary."""
+    out, radii = {}, {}
     for name, (controller, schedule) in structure_variants(base, values).items():
         outcomes = evaluate(controller, draws)
-        radius = max(float(d.loops.spectral_radius(table_gains(schedule, d.loops.roll_deg, d.loops.pitch_deg)).max())
-                     for d in draws.draws)
-        out[name] = {"score": score(outcomes, thesis, radius), "spectral_radius": radius,
-                     "unstable_runs": int(outcomes.unstable.sum()), "summary": outcomes.summary()}
+        key = np.r_[schedule.k_roll.ravel(), schedule.k_pitch.ravel()].tobytes()
+        if key not in radii:
+            radii[key] = table_radius(schedule, draws)
+        radius = radii[key]
+        out[name] = {"score": score(outcomes, thesis, radius), "tracking_score": tracking_score(outcomes, thesis),
+                     "spectral_radius": radius, "unstable_runs": int(outcomes.unstable.sum()),
+                     "summary": outcomes.summary()}
     return out

@@ -50,7 +50,6 @@ class TuningSection:
     scheduled_against_fixed: dict[str, float]     # draw set -> scheduled score / fixed score - 1
     flat_schedule: bool            # the scheduled search's best design has every Kp slope at 0
     same_designs: bool             # and is the fixed design itself
-    fixed_design_from: str | None
     shipped_is_chosen: bool        # gains.json holds the study's chosen design (on this drive file)
     scores: Table                  # controller x draw set: score and frozen-loop radius
     criteria: Table                # criterion x draw set, the chosen design against the thesis law
@@ -169,14 +168,14 @@ def reproducing_command(study: dict) -> str:
 
 def _choice(study: dict) -> tuple[dict[str, float], bool, bool]:
     """Scheduled against fixed per draw set (relative score), whether the scheduled design's Kp
-    slopes are all 0, and whether it is then the fixed design itself. The study's own choice (the
-    scheduled design where it wins by the study's margin on both draw sets) must follow from its scores."""
+    slopes are all 0, and whether it is then the fixed design itself. The study's own choice
+    (:func:`rcm_kin.tuning.study.choose` on the tuning draws' scores) must follow from its scores."""
     from rcm_kin.errors import RcmKinError
+    from rcm_kin.tuning.study import choose
 
     scores = study["scores"]
     against = {d: scores[d]["scheduled"] / scores[d]["fixed"] - 1.0 for d in DRAW_SETS}
-    wins = all(scores[d]["scheduled"] <= (1 - study["schedule_margin"]) * scores[d]["fixed"] for d in DRAW_SETS)
-    if study["chosen"] != ("scheduled" if wins else "fixed"):
+    if study["chosen"] != choose(scores["tuning"], study["schedule_margin"]):
         raise RcmKinError(f"the design study chose {study['chosen']!r}, which its scores do not give",
                           parameter="study")
     designs = study.get("designs", {})
@@ -231,7 +230,7 @@ def tuning_section(out: Path, study: str | Path | None = None, gains: str | Path
     return TuningSection(
         fresh=_fresh_table(loaded.path, SKIP_S), skip_s=SKIP_S, chosen=data["chosen"],
         chosen_label=LABELS[data["chosen"]], margin=data["schedule_margin"], scheduled_against_fixed=against,
-        flat_schedule=flat, same_designs=same, fixed_design_from=data.get("fixed_design_from"),
+        flat_schedule=flat, same_designs=same,
         shipped_is_chosen=_shipped_is_chosen(s, data["values"]), scores=_scores(data), criteria=_criteria(data),
         values=_values(data),
         gains=Table.of(gain_rows(s), ["gain", "pitch (deg)"] + [f"tuned, {r}" for r in roll_labels]
