@@ -21,7 +21,7 @@ from rcm_kin.report.render import render_section
 LINK = re.compile(r'(?:href|src)="([^"#]+)"')
 CONTROLLERS = ("thesis", "lqr", "fixed", "scheduled")
 SETS = ("tuning", "held_out")
-COMMAND = "rcm-kin schedule psm --tune --generations 12 --budget 600 --out tuned"
+COMMAND = "rcm-kin schedule psm --tune --generations 20 --budget 600 --out tuned"
 DESIGN = {"roll_kp": 400.0, "roll_kd": -8.0, "pitch_kp": 300.0, "pitch_kd": -1.0, "pitch_ki": 500.0,
           "roll_friction_pwm": 5.0, "pitch_friction_pwm": 15.0, "friction_ramp_deg_s": 1.5, "pitch_feedforward": 1.0}
 DRAWS = 64

@@ -41,7 +41,7 @@ def add_tune_options(p) -> None:
                         "whole run adds about 3 minutes of draws and judging on 2 cores)")
     p.add_argument("--generations", type=count(1, 100_000), default=None,
                    help="--tune: each search also stops after G generations (the same seed then gives the same "
-                        "design on any machine; the shipped design: 12)")
+                        "design on any machine; the shipped design: 20)")
     p.add_argument("--workers", type=count(1, 64), default=None,
                    help="--tune: processes scoring the candidates (default: 2, or 1 on one core)")
 
