@@ -110,16 +110,17 @@ def summary(data: dict, files) -> str:
                  f"{data['tune_samples']}) and {data['samples']} held out (seed {data['seeds']['held_out']}); "
                  f"{sum(data['rejected_as_inconsistent_with_holds'])} drawn sets skipped as against the measured holds")
     for name, scores in data["scores"].items():
-        lines.append(f"score on the {name.replace('_', '-')} draws (thesis law 2.0, lower is better): "
-                     + ", ".join(f"{c} {v:.3f}" for c, v in scores.items()))
+        lines.append(f"score on the {name.replace('_', '-')} draws (lower is better; tracking alone gives the thesis "
+                     "law 2, penalties add 100 or more): " + ", ".join(f"{c} {v:.3f}" for c, v in scores.items()))
     for name, met in data["criteria"].items():
         failed = [k for k, v in met.items() if not v]
         lines.append(f"{data['chosen']} design against the thesis law, {name.replace('_', '-')} draws: "
                      + ("every criterion met" if not failed else f"NOT met: {', '.join(failed)}"))
+    margin = f"{100 * data['schedule_margin']:g} %"
     lines.append(f"chosen: {data['chosen']} ("
-                 + ("the scheduled gains beat one gain set on both draw sets" if data["chosen"] == "scheduled"
-                    else
-                    "one gain set is as good on this robot: scheduling did not beat it by "
-                    f"{100 * data['schedule_margin']:g} % on both draw sets") + ")")
+                 + (f"the scheduled gains beat one gain set by {margin} or more on the tuning draws"
+                    if data["chosen"] == "scheduled" else
+                    f"one gain set is as good on this robot: scheduling did not beat it by {margin} on the tuning "
+                    "draws") + "; the held-out draws check, they do not choose)")
     lines.append("  " + ", ".join(f"{k} {v:.4g}" for k, v in data["values"].items()))
     return "\n".join(lines)
