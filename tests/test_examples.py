@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rcm_kin.control.schedule_file import read_schedule_file
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
@@ -22,7 +24,8 @@ def run_example(name: str, out: Path) -> str:
 
 
 def test_every_example_is_tested():
-    assert sorted(p.name for p in EXAMPLES.glob("*.py")) == ["linear_model.py", "meshcat_view.py", "torque_map.py"]
+    assert sorted(p.name for p in EXAMPLES.glob("*.py")) == ["linear_model.py", "meshcat_view.py", "torque_map.py",
+                                                             "tuned_gains.py"]
 
 
 def test_torque_map_example(tmp_path):
@@ -50,3 +53,13 @@ def test_meshcat_view_example(tmp_path):
     page = (tmp_path / "view" / "psm.html").read_text()
     assert page.lstrip().lower().startswith("<!doctype html") or "<html" in page[:1000].lower()
     assert "psm" in page
+
+
+def test_tuned_gains_example(tmp_path):
+    """The small tuning writes a schedule the simulator reads back with the law it was tuned for."""
+    out = run_example("tuned_gains.py", tmp_path / "tuned")
+    assert "thesis law" in out and "this tuning" in out
+    loaded = read_schedule_file(tmp_path / "tuned" / "gains.json")
+    assert loaded.flags == {"scheduled": True, "gravity": True, "track_velocity": True, "friction": True}
+    assert "rcm_control_law" in (tmp_path / "tuned" / "gain_schedule.h").read_text()
+
