@@ -3,9 +3,9 @@
 import lazy_loader
 
 __all__ = [
-    "GainSchedule", "Linearization", "LinearizationGrid", "ScheduleFile", "Weights", "friction_compensation",
-    "linearize", "linearize_grid", "read_schedule_file", "schedule_gains", "schedule_joints", "scheduled_gains",
-    "stability_survey", "zero_order_hold",
+    "GainSchedule", "Linearization", "LinearizationGrid", "Weights", "friction_compensation",
+    "linearize", "linearize_grid", "schedule_gains", "schedule_joints", "scheduled_gains", "stability_survey",
+    "zero_order_hold",
 ]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
@@ -17,6 +17,5 @@ __getattr__, __dir__, _ = lazy_loader.attach(
         "weights": ["Weights"],
         "stability": ["stability_survey"],
         "friction": ["friction_compensation"],
-        "schedule_file": ["ScheduleFile", "read_schedule_file"],
     },
 )
