@@ -158,20 +158,20 @@ class DrawSet:
 
 
 def holding_check(params: DriveParameters, psm):
-    """``drawn -> bool``: whether a drawn set's holding PWM of roll and pitch at the thesis grid's
-    poses is within the measured holding band about ``params``' own (see the module's notes)."""
+    """``model -> bool``: whether the smooth model of a drawn set holds roll and pitch at the thesis
+    grid's poses with a PWM within the measured holding band about ``params``' own (see the module's
+    notes)."""
     P, R = np.meshgrid(np.radians(THESIS_PITCH_DEG), np.radians(THESIS_ROLL_DEG), indexing="ij")
     Q = np.column_stack([R.ravel(), P.ravel(), np.full(R.size, HOME_INSERTION)])
 
-    def holds(p: DriveParameters) -> np.ndarray:
-        model = driven_dynamics(psm, p, coulomb=False)
+    def holds(model) -> np.ndarray:
         return np.array([holding_pwm(model, q)[:2] for q in Q])
 
     residuals = residuals_of(params)
     width = np.array([conformal_half_width(residuals[j], HOLDING_LEVEL) if j in residuals else np.inf
                       for j in ("roll", "pitch")])
-    nominal = holds(params)
-    return lambda drawn: bool(np.all(np.abs(holds(drawn) - nominal) <= width))
+    nominal = holds(driven_dynamics(psm, params, coulomb=False))
+    return lambda model: bool(np.all(np.abs(holds(model) - nominal) <= width))
 
 
 def build_draws(params: DriveParameters, samples: int, seed: int, points: int = 9,
@@ -196,7 +196,7 @@ def build_draws(params: DriveParameters, samples: int, seed: int, points: int = 
     rolls = np.linspace(THESIS_ROLL_DEG[0], THESIS_ROLL_DEG[-1], points)
     pitches = np.linspace(THESIS_PITCH_DEG[0], THESIS_PITCH_DEG[-1], points)
     psm = load_robot("psm")
-    check = holding_check(params, psm) if consistent else (lambda drawn: True)
+    check = holding_check(params, psm) if consistent else (lambda model: True)
     seeds, out, rejected = iter(enumerate(sample_seeds(seed, samples * MAX_TRIES))), [], 0
     bar = tqdm(total=samples, desc="draw plants", unit="plant", disable=not progress, leave=False)
     while len(out) < samples:
@@ -205,11 +205,11 @@ def build_draws(params: DriveParameters, samples: int, seed: int, points: int = 
             raise RcmKinError(f"fewer than {samples} of {samples * MAX_TRIES} drawn sets agree with the measured holds "
                               "(the holding band): the file's spreads are too wide for its holds", parameter="params")
         drawn = params if (nominal_first and not out) else with_values(params, uncertain, draw(uncertain, s))
-        if not check(drawn):
+        model = driven_dynamics(psm, drawn, coulomb=False)      # the check's model, and the draw's
+        if not check(model):
             rejected += 1
             continue
         bar.update(1)
-        model = driven_dynamics(psm, drawn, coulomb=False)
         holds = {e: start_hold(r, model=model) for e, r in references.items()}
         out.append(Draw(i, drawn, sample_plant(drawn, settings.period), holds,
                         loop_family(model, rolls, pitches, HOME_INSERTION, settings.period)))
