@@ -35,7 +35,7 @@ EPILOG_SCHEDULE = ("examples: rcm-kin schedule psm --out gains\n"
                    "          rcm-kin schedule my_arm.toml --grid j2=-30:60:7 j3=-20:40:5 --out gains   (JSON, CSV)\n"
                    "          rcm-kin schedule my_arm.toml --grid j2=-30:60:7 j3=-20:40:5 --at j4=15 --out gains\n"
                    "          rcm-kin schedule psm --gravity-feedforward --friction-feedforward --out gains\n"
-                   "          rcm-kin schedule psm --tune --out tuned   (about 9 minutes on 2 cores)")
+                   "          rcm-kin schedule psm --tune --out tuned   (about 7 minutes on 2 cores)")
 
 
 def add_schedule(sub) -> None:

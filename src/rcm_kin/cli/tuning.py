@@ -38,7 +38,7 @@ def add_tune_options(p) -> None:
                    help="--tune: seed of the held-out draws (default 1)")
     p.add_argument("--budget", type=finite(1, 86400, "s"), default=None,
                    help="--tune: seconds of search, 60 %% the gain set and 40 %% its pose slopes (default 300; the "
-                        "whole run adds about 3 minutes of draws and judging on 2 cores)")
+                        "whole run adds about 2 minutes of draws and judging on 2 cores)")
     p.add_argument("--generations", type=count(1, 100_000), default=None,
                    help="--tune: each search also stops after G generations (the same seed then gives the same "
                         "design on any machine; the shipped design: 20)")

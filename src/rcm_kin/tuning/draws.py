@@ -49,7 +49,8 @@ from rcm_kin.statics.holding_band import conformal_half_width, residuals_of
 EXPERIMENTS = ("sine", "target")        # the thesis's tracking experiments (Sec. 5.2.1, 5.2.2)
 LOOP_POINTS = 41                        # poses per axis of the final stability check (the schedule's default)
 HOLDING_LEVEL = 0.9                     # the holding band's level (the drive file's holds support it)
-MAX_TRIES = 8                           # seeds tried per kept draw before the draws are refused
+MAX_TRIES = 8                           # seeds tried per kept draw before the draws are refused,
+MIN_TRIES = 64                          # and at least these (a few draws would give up by chance)
 GAIN_NAMES = ("roll_kp", "roll_kd", "pitch_kp", "pitch_kd", "pitch_ki")   # the loop's gains, firmware units
 
 
@@ -197,13 +198,15 @@ def build_draws(params: DriveParameters, samples: int, seed: int, points: int = 
     pitches = np.linspace(THESIS_PITCH_DEG[0], THESIS_PITCH_DEG[-1], points)
     psm = load_robot("psm")
     check = holding_check(params, psm) if consistent else (lambda model: True)
-    seeds, out, rejected = iter(enumerate(sample_seeds(seed, samples * MAX_TRIES))), [], 0
+    tries = max(samples * MAX_TRIES, MIN_TRIES)
+    seeds, out, rejected = iter(enumerate(sample_seeds(seed, tries))), [], 0
     bar = tqdm(total=samples, desc="draw plants", unit="plant", disable=not progress, leave=False)
     while len(out) < samples:
         i, s = next(seeds, (None, None))
         if s is None:
-            raise RcmKinError(f"fewer than {samples} of {samples * MAX_TRIES} drawn sets agree with the measured holds "
-                              "(the holding band): the file's spreads are too wide for its holds", parameter="params")
+            raise RcmKinError(f"fewer than {samples} of {tries} drawn sets agree with the measured holds (the holding "
+                              "band): the spreads are too wide for the file's holds; check its [uncertainty.holding_residuals] "
+                              "(rcm-kin calibrate writes them)", parameter="params")
         drawn = params if (nominal_first and not out) else with_values(params, uncertain, draw(uncertain, s))
         model = driven_dynamics(psm, drawn, coulomb=False)      # the check's model, and the draw's
         if not check(model):
