@@ -205,8 +205,8 @@ def build_draws(params: DriveParameters, samples: int, seed: int, points: int = 
         i, s = next(seeds, (None, None))
         if s is None:
             raise RcmKinError(f"fewer than {samples} of {tries} drawn sets agree with the measured holds (the holding "
-                              "band): the spreads are too wide for the file's holds; check its [uncertainty.holding_residuals] "
-                              "(rcm-kin calibrate writes them)", parameter="params")
+                              "band): the spreads are too wide for the file's holds; check its "
+                              "[uncertainty.holding_residuals] (rcm-kin calibrate writes them)", parameter="params")
         drawn = params if (nominal_first and not out) else with_values(params, uncertain, draw(uncertain, s))
         model = driven_dynamics(psm, drawn, coulomb=False)      # the check's model, and the draw's
         if not check(model):
