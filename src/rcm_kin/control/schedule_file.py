@@ -40,7 +40,8 @@ class ScheduleFile:
 
 def _fail(path: Path, message: str, key: str | None = None) -> RcmKinError:
     where = f" (key {key!r})" if key else ""
-    return RcmKinError(f"{path}: {message}{where}", parameter="gains")
+    return RcmKinError(f"{path}: {message}{where}; give the gains.json that rcm-kin schedule psm [--tune] wrote",
+                       parameter="gains")
 
 
 def _table(raw: dict, key: str, shape: tuple[int, ...], path: Path) -> np.ndarray:
