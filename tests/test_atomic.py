@@ -5,6 +5,7 @@ refused. What a plain write gives (permissions, content) is the reference, made 
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import stat
@@ -15,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rcm_kin.atomic import PARTIAL, atomic_open, atomic_path, write_bytes, write_text
+from rcm_kin.atomic import MANIFEST, PARTIAL, atomic_open, atomic_path, claim, stop_writes, write_bytes, write_text
 from rcm_kin.csv_table import write_csv_blocks
 from rcm_kin.errors import RcmKinError
 
@@ -135,3 +136,71 @@ def test_a_process_stopped_mid_write_leaves_no_final_file(tmp_path, signum):
     assert child.returncode != 0 and not final.exists()
     left = [p.name for p in tmp_path.iterdir()]
     assert left == [] if signum == signal.SIGINT else all(PARTIAL in name for name in left)
+
+
+# ---- owned outputs: claims on a folder or a file (what the command line takes for each run) ----
+
+def test_a_claimed_folder_replaces_only_its_own_files(tmp_path):
+    """Our own earlier output is replaced; a user's file, or ours changed since, is not (without force)."""
+    folder = tmp_path / "maps"
+    with claim(folder, folder=True):
+        write_text(folder / "map.csv", "ours\n")
+    with claim(folder, folder=True):             # a second run: its own earlier file, unchanged
+        write_text(folder / "map.csv", "ours again\n")
+    assert (folder / "map.csv").read_text() == "ours again\n"
+    (folder / "notes.txt").write_text("the user's")
+    with claim(folder, folder=True), pytest.raises(RcmKinError, match="did not write it"):
+        write_text(folder / "notes.txt", "ours")
+    assert (folder / "notes.txt").read_text() == "the user's"
+    (folder / "map.csv").write_text("edited by hand, longer than before\n")
+    with claim(folder, folder=True), pytest.raises(RcmKinError, match="changed since"):
+        write_text(folder / "map.csv", "ours")
+    with claim(folder, folder=True, force=True):
+        write_text(folder / "notes.txt", "ours")
+    assert (folder / "notes.txt").read_text() == "ours"
+    # the edited map is the user's now: no longer in the manifest (a later run refuses it too)
+    assert set(json.loads((folder / MANIFEST).read_text())["files"]) == {"notes.txt"}
+
+
+def test_a_claimed_folder_is_locked_against_a_second_run(tmp_path):
+    """A second claim on the folder (another process, as a second command would) is refused at once."""
+    folder = tmp_path / "out"
+    code = ("import sys\nfrom rcm_kin.atomic import claim\nfrom rcm_kin.errors import RcmKinError\n"
+            "try:\n    with claim(sys.argv[1], folder=True): pass\n"
+            "except RcmKinError as e:\n    print(e); sys.exit(2)\n")
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    with claim(folder, folder=True):
+        held = subprocess.run([sys.executable, "-c", code, str(folder)], capture_output=True, text=True, env=env)
+    free = subprocess.run([sys.executable, "-c", code, str(folder)], capture_output=True, text=True, env=env)
+    assert held.returncode == 2 and "another run is writing to" in held.stdout
+    assert free.returncode == 0
+
+
+def test_a_claimed_file_that_appears_meanwhile_is_not_replaced(tmp_path):
+    """Two runs with the same new output: the one finishing second is refused, the first's result kept."""
+    out = tmp_path / "same.toml"
+    with claim(out, folder=False):
+        out.write_text("the other run's result\n")           # another run finished first
+        with pytest.raises(RcmKinError, match="written by another run"):
+            write_text(out, "this run's result\n")
+    assert out.read_text() == "the other run's result\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["same.toml"]        # no temporary left
+    with claim(out, folder=False, force=True):
+        write_text(out, "forced\n")
+    assert out.read_text() == "forced\n"
+
+
+def test_a_claim_clears_the_unfinished_writes_of_stopped_workers(tmp_path):
+    folder = tmp_path / "report"
+    with claim(folder, folder=True):
+        (folder / "sub").mkdir()
+        (folder / "sub" / f".figure.0a1b2c3d{PARTIAL}.png").write_bytes(b"half")
+    assert sorted(p.name for p in folder.rglob("*")) == ["sub"]          # nothing written: no manifest either
+
+
+def test_no_write_lands_after_stop_writes(tmp_path, monkeypatch):
+    monkeypatch.setattr("rcm_kin.atomic._STOPPED", [])
+    stop_writes("the run was terminated (SIGTERM)")
+    with pytest.raises(RcmKinError, match="not written: the run was terminated"):
+        write_text(tmp_path / "late.csv", "x\n")
+    assert list(tmp_path.iterdir()) == []

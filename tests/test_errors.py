@@ -286,3 +286,22 @@ def test_every_schema_violation_is_a_parameter_file_error_with_its_fields(tmp_pa
     with pytest.raises(ParameterFileError) as raised:
         load_drive_parameters(path)
     assert (raised.value.path, raised.value.table, raised.value.key) == (path, table, key)
+
+
+def test_parameter_and_robot_files_are_read_within_a_bound(tmp_path):
+    """A file far larger than any parameter file or URDF is refused unread (not parsed into memory)."""
+    import rcm_kin as rk
+    from rcm_kin.errors import MAX_TEXT_FILE_BYTES, WorkLimitError
+
+    big = tmp_path / "drive.toml"
+    with big.open("wb") as fh:
+        fh.truncate(MAX_TEXT_FILE_BYTES + 1)          # sparse: one byte over the bound
+    with pytest.raises(WorkLimitError, match="larger than 8 MiB") as caught:
+        rk.load_drive_parameters(big)
+    assert caught.value.limit == MAX_TEXT_FILE_BYTES
+    sidecar = tmp_path / "arm.toml"
+    sidecar.write_text('urdf = "arm.urdf"\n')
+    with (tmp_path / "arm.urdf").open("wb") as fh:
+        fh.truncate(MAX_TEXT_FILE_BYTES + 1)
+    with pytest.raises(WorkLimitError, match="URDF .* larger than 8 MiB"):
+        rk.load_robot(str(sidecar))

@@ -9,16 +9,30 @@ temporary: no file appears under the final name, and a file already there is lef
 An output that is a symbolic link is written through only when the link's target stays in the
 output's folder; a link leading out of it is an :class:`~rcm_kin.errors.RcmKinError`.
 
+**Owned outputs.** A run (the command line's) may :func:`claim` its outputs: a folder it writes
+into, or a single file. A claimed folder is locked for the run (``flock`` on the folder: a second
+run claiming it is refused at once, never two runs claiming success for one result), is cleared of
+unfinished temporaries when the claim ends (a worker process stopped outright leaves its own), and
+keeps a manifest (``.rcm-kin-outputs.json``) of the files rcm_kin wrote there, with their size and
+modification time. While a claim is open, a write under the claimed folder replaces a file only
+when rcm_kin wrote it and it is unchanged since, or when the claim was made with ``force``; a
+claimed single file that appears (or changes) after the claim, while the run works, is not
+replaced without ``force`` (another run wrote it). Without a claim (a library call) a write
+replaces what is there, as a plain write would, but atomically.
+
 :func:`atomic_open` gives a text or binary stream; :func:`atomic_path` gives a temporary path for
 libraries that write by path (matplotlib's ``savefig``, ``np.savetxt``); :func:`write_text` and
 :func:`write_bytes` are the one-call forms.
 """
 
 import contextlib
+import fcntl
+import json
 import os
 import secrets
 import stat
 from collections.abc import Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
@@ -116,14 +130,207 @@ def _sync(temporary: Path) -> None:
         os.close(fd)
 
 
+_STOPPED: list[str] = []
+
+
+def stop_writes(reason: str) -> None:
+    """From now on, in this process, no write is committed: each raises an RcmKinError giving
+    ``reason`` (and leaves no file). The command line calls it on SIGTERM, so that a run that
+    carries on for a while (a signal landing where an exception is swallowed) writes nothing more."""
+    _STOPPED.append(reason)
+
+
 def _commit(temporary: Path, final: Path) -> None:
-    """Rename ``temporary`` onto ``final`` (an existing file's permissions kept), then fsync the folder."""
+    """Rename ``temporary`` onto ``final`` (an existing file's permissions kept), then fsync the
+    folder; under an open :func:`claim`, only where the claim admits it (:meth:`Claim.admit`);
+    never after :func:`stop_writes`."""
+    if _STOPPED:
+        raise RcmKinError(f"{final} not written: {_STOPPED[0]}")
+    claim = _claim_of(final)
+    exclusive = claim is not None and claim.admit(final.resolve())
     with contextlib.suppress(FileNotFoundError):
         os.chmod(temporary, stat.S_IMODE(os.stat(final).st_mode))
-    os.replace(temporary, final)
+    if exclusive:
+        _link_new(temporary, final)
+    else:
+        os.replace(temporary, final)
+    if claim is not None:
+        claim.written.add(final.resolve())
     with contextlib.suppress(OSError):      # not every system opens a folder (Windows): the rename stands
         fd = os.open(final.parent, os.O_RDONLY)
         try:
             os.fsync(fd)
         finally:
             os.close(fd)
+
+
+MANIFEST = ".rcm-kin-outputs.json"
+"""The manifest of a claimed folder: the files rcm_kin wrote there (relative path -> [size, mtime_ns])."""
+
+
+@dataclass
+class Claim:
+    """An output a run owns while it works: a folder (``path`` a folder, locked by ``lock``, with
+    the manifest ``owned`` of the files rcm_kin wrote there) or one file (``before``: its size and
+    modification time when claimed, None when it did not exist). ``written``: the files committed."""
+
+    path: Path
+    force: bool
+    folder: bool
+    owned: dict = field(default_factory=dict)
+    before: tuple | None = None
+    lock: int | None = None
+    written: set = field(default_factory=set)
+    found: dict = field(default_factory=dict)
+
+    def covers(self, final: Path) -> bool:
+        """Whether a write to ``final`` (a resolved path) is under this claim."""
+        return final.is_relative_to(self.path) if self.folder else final == self.path
+
+    def admit(self, final: Path) -> bool:
+        """Allow the commit of ``final`` or refuse it (RcmKinError); True when it must create the
+        file exclusively (nothing may be there when it lands)."""
+        now = _signature(final)
+        if self.force or final in self.written:
+            return False
+        if self.folder:
+            if now is None:
+                return True
+            if self.owned.get(final.relative_to(self.path).as_posix()) == list(now):
+                return False
+            raise RcmKinError(f"{final} exists and rcm-kin did not write it (or it changed since): "
+                              "choose another output folder, move the file, or add `force`", parameter="force")
+        if now is None and self.before is None:
+            return True
+        if now is not None and now == self.before:
+            return False
+        raise RcmKinError(f"{final} was written by another run while this one worked: "
+                          "nothing replaced; choose another output file or add `force`", parameter="force")
+
+
+_CLAIMS: list[Claim] = []
+
+
+@contextlib.contextmanager
+def claim(path: str | Path, *, folder: bool, force: bool = False) -> Iterator[Claim]:
+    """Own ``path`` (a folder, created if missing, when ``folder``; else one file) until the block
+    ends: see the module's "Owned outputs". A folder another run has claimed is an RcmKinError; a
+    folder the claim created is removed again if nothing was written in it."""
+    path = Path(path)
+    if not folder:
+        final = final_target(path).resolve()
+        c = Claim(final, force, False, before=_signature(final))
+        with _open_claim(c):
+            yield c
+        return
+    created = not path.exists()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        lock = os.open(path, os.O_RDONLY)
+    except OSError as exc:
+        raise RcmKinError(f"cannot create the output folder {path}: {exc.strerror}") from None
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(lock)
+        raise RcmKinError(f"another run is writing to {path}: wait for it to end or choose another folder") from None
+    c = Claim(path.resolve(), force, True, owned=_read_manifest(path), lock=lock, found=_files(path.resolve()))
+    try:
+        with _open_claim(c):
+            yield c
+    finally:
+        with contextlib.suppress(OSError):
+            _write_manifest(c)
+            _remove_partials(c.path)
+            if created and not any(c.path.iterdir()):      # a run that wrote nothing leaves no new folder
+                c.path.rmdir()
+        os.close(lock)
+
+
+def _remove_partials(folder: Path) -> None:
+    """Remove the unfinished writes under a claimed folder: a worker process stopped outright
+    leaves its temporary; no other run writes there while the claim's lock is held."""
+    for path in folder.rglob(f".*{PARTIAL}*"):
+        with contextlib.suppress(OSError):
+            path.unlink()
+
+
+@contextlib.contextmanager
+def _open_claim(c: Claim) -> Iterator[None]:
+    _CLAIMS.append(c)
+    try:
+        yield
+    finally:
+        _CLAIMS.remove(c)
+
+
+def _claim_of(final: Path) -> Claim | None:
+    """The innermost open claim covering ``final``, if any."""
+    if not _CLAIMS:
+        return None
+    resolved = final.resolve()
+    return next((c for c in reversed(_CLAIMS) if c.covers(resolved)), None)
+
+
+def _signature(path: Path) -> tuple[int, int] | None:
+    """(size, mtime_ns) of the file at ``path``, None when there is none."""
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        return None
+    return st.st_size, st.st_mtime_ns
+
+
+def _files(folder: Path) -> dict:
+    """Every finished file under ``folder`` but the manifest: relative path -> (size, mtime_ns)."""
+    found = {}
+    for path in folder.rglob("*"):
+        if path.name != MANIFEST and PARTIAL not in path.name and path.is_file() and not path.is_symlink():
+            sig = _signature(path)
+            if sig is not None:
+                found[path.relative_to(folder).as_posix()] = sig
+    return found
+
+
+def _read_manifest(folder: Path) -> dict:
+    """The files a claimed folder's manifest says rcm_kin wrote (empty when none or unreadable)."""
+    try:
+        owned = json.loads((folder / MANIFEST).read_text()).get("files", {})
+    except (OSError, ValueError, AttributeError):
+        return {}
+    return owned if isinstance(owned, dict) else {}
+
+
+def _write_manifest(c: Claim) -> None:
+    """Record in the folder's manifest every file this run wrote there, beside the earlier runs'
+    still unchanged; also after a failure (the files committed before it are rcm_kin's). Files
+    written by the run's forked workers are those new or changed since the claim (a file that was
+    there and not rcm_kin's could not have been replaced)."""
+    files = {name: sig for name, sig in c.owned.items() if list(_signature(c.path / name) or ()) == sig}
+    for name, sig in _files(c.path).items():
+        if c.path / name in c.written or c.found.get(name) != sig:
+            files[name] = list(sig)
+    if not files and not (c.path / MANIFEST).exists():
+        return
+    temporary = _reserve(c.path / MANIFEST)
+    try:
+        temporary.write_text(json.dumps({"written_by": "rcm-kin", "files": dict(sorted(files.items()))}, indent=1))
+        os.replace(temporary, c.path / MANIFEST)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            temporary.unlink()
+        raise
+
+
+def _link_new(temporary: Path, final: Path) -> None:
+    """Move ``temporary`` to ``final`` only if nothing is there (a hard link, then the temporary
+    removed): a file that appeared meanwhile is an RcmKinError, never replaced."""
+    try:
+        os.link(temporary, final)
+    except FileExistsError:
+        raise RcmKinError(f"{final} was written by another run while this one worked: "
+                          "nothing replaced; choose another output", parameter="force") from None
+    except OSError:                 # a file system without hard links: the plain rename
+        os.replace(temporary, final)
+        return
+    temporary.unlink()

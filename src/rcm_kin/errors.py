@@ -14,6 +14,8 @@ import tomllib
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 
 class RcmKinError(ValueError):
     """A request rcm_kin cannot satisfy; the message says what was wrong and what to do.
@@ -147,11 +149,32 @@ def _inside(frame) -> bool:
     return name == "rcm_kin" or name.startswith("rcm_kin.")
 
 
+MAX_TEXT_FILE_BYTES = 8 * 2**20
+"""The largest parameter, robot description or gains file read (bytes): about 500 times the
+shipped drive file, 20 times a dVRK URDF with every link's inertial."""
+
+
+def read_bounded(path: Path, what: str, limit: int = MAX_TEXT_FILE_BYTES) -> bytes:
+    """The bytes of the file ``path`` (a ``what``), at most ``limit``: a larger file is a
+    :class:`WorkLimitError` naming it, read no further (an OSError is ``open``'s)."""
+    with open(path, "rb") as fh:
+        data = fh.read(limit + 1)
+    if len(data) > limit:
+        raise WorkLimitError(f"the {what} {path} is larger than {limit // 2**20} MiB: not a {what}",
+                             requested=Path(path).stat().st_size, limit=limit)
+    return data
+
+
+def read_text(path: Path, what: str, limit: int = MAX_TEXT_FILE_BYTES) -> str:
+    """:func:`read_bounded` decoded as UTF-8 (a UnicodeDecodeError as ``bytes.decode``'s)."""
+    return read_bounded(path, what, limit).decode()
+
+
 def read_toml(path: Path, what: str, text: str | None = None) -> dict:
-    """The parsed TOML file ``path`` (or ``text``, already read from it); a missing or malformed
-    file is an RcmKinError naming ``what``."""
+    """The parsed TOML file ``path`` (or ``text``, already read from it; either at most
+    :data:`MAX_TEXT_FILE_BYTES`); a missing, oversized or malformed file is an RcmKinError naming ``what``."""
     try:
-        return tomllib.loads(Path(path).read_text() if text is None else text)
+        return tomllib.loads(read_text(path, what) if text is None else text)
     except FileNotFoundError:
         raise RcmKinError(f"no {what} at {path}") from None
     except OSError as exc:
@@ -168,3 +191,12 @@ def output_folder(path) -> Path:
     except OSError as exc:
         raise RcmKinError(f"cannot create the output folder {out}: {exc.strerror}") from None
     return out
+
+
+def as_numbers(value, parameter: str, what: str) -> np.ndarray:
+    """``value`` as a float array, or an RcmKinError naming ``parameter`` and saying ``what`` it
+    should be (strings, None and ragged lists are refused here, not as NumPy's ValueError)."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise RcmKinError(f"`{parameter}` must be {what}, got {str(value)[:60]!r}", parameter=parameter) from None

@@ -13,14 +13,17 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
+import multiprocessing
 import os
+import signal
 import sys
+from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from typing import Callable, Iterator, Sequence
 
 from tqdm import tqdm
 
-from rcm_kin.errors import RcmKinError, recording_warnings, reissue
+from rcm_kin.errors import RcmKinError, WorkLimitError, recording_warnings, reissue
 
 CONNECT_SECONDS = 10.0      # to reach an existing scheduler and hear it answer
 BATCHES_PER_WORKER = 4      # default batch size: about this many batches per worker, for balance
@@ -40,11 +43,11 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
 
     if scheduler is None:
         n = workers or machine_workers()
-        if n < 1:
-            raise RcmKinError(f"the local cluster needs at least 1 worker, got {n}")
+        check_workers(n)
         # silence_logs: the workers' "Compute Failed" reports would precede the one-line error
+        # preload: this module's dask_setup, in each worker process (Ctrl-C is the parent's to handle)
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                          silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
+                          silence_logs=logging.CRITICAL, preload=[__name__]) as cluster, Client(cluster) as client:
             yield client
         return
     check_scheduler(scheduler)
@@ -85,6 +88,58 @@ def check_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
             return
         what = f"the service there is {'a Dask ' + kind if kind else 'not a Dask scheduler'}"
     raise RcmKinError(f"cannot reach a Dask scheduler at {address}: {what}")
+
+
+def dask_setup(worker) -> None:
+    """Dask's preload hook, run in each worker process of the embedded cluster: the worker ignores
+    SIGINT (Ctrl-C reaches the whole process group; the parent closes the cluster, which stops the
+    workers, and prints the one line)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+WORKERS_PER_CORE = 4
+"""Local worker processes allowed per core: more only share the cores and take memory (each worker
+holds its own Python, NumPy and model, 150-300 MB)."""
+
+
+def check_workers(n: int, parameter: str = "workers") -> int:
+    """``n`` local worker processes, or an error: at least 1 and at most :data:`WORKERS_PER_CORE`
+    per core of this machine (a run's memory is bounded by the machine's cores)."""
+    limit = WORKERS_PER_CORE * machine_workers()
+    if n < 1:
+        raise RcmKinError(f"the local cluster needs at least 1 worker, got {n}", parameter=parameter)
+    if n > limit:
+        raise WorkLimitError(f"{n} local worker processes on {machine_workers()} cores: at most {limit} "
+                             f"({WORKERS_PER_CORE} per core; each holds 150-300 MB)", requested=n, limit=limit,
+                             parameter=parameter)
+    return n
+
+
+def quiet_worker() -> None:
+    """Initializer of every worker process rcm_kin starts: SIGINT (Ctrl-C reaches the whole process
+    group) and SIGTERM end it at once, without a traceback; the parent prints the one line."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+@contextmanager
+def process_pool(workers: int, fork: bool = True) -> Iterator[ProcessPoolExecutor]:
+    """A ``ProcessPoolExecutor`` of ``workers`` :func:`quiet_worker` processes (forked, so that
+    they inherit what the parent built, when ``fork``). When the block raises (an error, Ctrl-C,
+    SIGTERM) the jobs not started are cancelled and the running ones stopped, not waited for."""
+    context = multiprocessing.get_context("fork" if fork else None)
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=quiet_worker)
+    try:
+        yield pool
+    except BaseException:
+        processes = list((getattr(pool, "_processes", None) or {}).values())   # the stdlib's: no public handle
+        pool.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
+        for process in processes:
+            process.join(5)
+        raise
+    pool.shutdown()
 
 
 def batches_of(items: Sequence, batch_size: int) -> list[list]:

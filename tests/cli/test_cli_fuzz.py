@@ -418,3 +418,99 @@ def test_console_script_one_line(argv, status, tmp_path):
         assert result.stderr.startswith("error: ") and result.stderr.count("\n") == 1 and not result.stdout
     else:
         assert result.stdout.startswith("rcm-kin ")
+
+
+# --- hostile file systems and signals (issue 28's classes) -------------------------------------------------
+OUTPUT_COMMANDS = {   # argv with {out}, the file it writes there, whether {out} is a folder
+    "torque-map": (["torque-map", "psm", "--roll=-5:5:5", "--pitch=-5:5:5", "--out", "{out}", "--no-figures"],
+                   "torque_map.csv", True),
+    "simulate --plot": (["simulate", "psm", "--experiment", "sine", "--controller", "p", "--duration", "1", "--plot",
+                         "{out}"], "sine_p.png", True),
+    "export --mjcf": (["export", "psm", "--mjcf", "{out}"], None, False),
+}
+HAZARDS = ["user file in the way", "link out of the folder", "folder in use", "file where the folder goes",
+           "leftover temporary", "none"]
+
+
+def _hazard(hazard: str, root: Path, folder: bool, name: str | None, stack: contextlib.ExitStack) -> tuple[Path, int]:
+    """Set ``hazard`` up under ``root``: the output path to give and the status the run must end with."""
+    from rcm_kin.atomic import claim
+
+    out = root / ("out" if folder else "out.xml")
+    target = out / name if folder else out
+    if hazard == "user file in the way":
+        out.mkdir() if folder else None
+        target.write_text("the user's\n")
+        return out, 2
+    if hazard == "link out of the folder":
+        out.mkdir() if folder else None
+        (root / "notes.txt").write_text("the user's\n")
+        target.symlink_to(root / "notes.txt" if folder else Path("/") / "tmp" / "elsewhere" / "x")
+        return out, 2
+    if hazard == "folder in use":
+        stack.enter_context(claim(out if folder else root, folder=True))
+        return out, 2 if folder else 0
+    if hazard == "file where the folder goes":
+        out.write_text("the user's\n") if folder else out.mkdir()
+        return out, 2
+    if hazard == "leftover temporary":
+        out.mkdir() if folder else None
+        (out if folder else root).joinpath(".x.0011aabb.partial.csv").write_text("half")
+        return out, 0
+    return out, 0
+
+
+@pytest.mark.parametrize("command", OUTPUT_COMMANDS)
+def test_fuzz_outputs_on_a_hostile_file_system(command, tmp_path_factory):
+    """Every hazard ends as it must: refused in one line with the user's files untouched, or written."""
+    argv_template, name, folder = OUTPUT_COMMANDS[command]
+
+    @settings(max_examples=len(HAZARDS), derandomize=True, deadline=None, database=None, print_blob=False,
+              suppress_health_check=list(HealthCheck))
+    @given(st.sampled_from(HAZARDS))
+    def case(hazard):
+        root = tmp_path_factory.mktemp("hazard")
+        with contextlib.ExitStack() as stack:
+            out, status = _hazard(hazard, root, folder, name, stack)
+            before = {p: p.read_bytes() for p in root.rglob("*") if p.is_file() and not p.is_symlink()
+                      and "partial" not in p.name}
+            argv = [w.format(out=out) for w in argv_template]
+            result = run_case(argv)
+        assert result["crash"] is None and result["status"] == status, (hazard, result)
+        if status == 2:
+            assert result["err"].startswith("error: ") and result["err"].count("\n") == 1, (hazard, result["err"])
+            assert all(p.read_bytes() == data for p, data in before.items()), hazard     # nothing of theirs touched
+        else:
+            assert (out / name if folder else out).is_file(), hazard
+
+    case()
+
+
+@pytest.mark.slow
+def test_fuzz_sigterm_at_any_moment_leaves_a_whole_file_or_none(tmp_path):
+    """SIGTERM at random moments of a torque map: status 143 with no table, or 0 with the whole table
+    (or, during the imports before the command begins, the signal's default: nothing written, nothing said)."""
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src"), "OPENBLAS_NUM_THREADS": "1"}
+
+    @settings(max_examples=6, derandomize=True, deadline=None, database=None, print_blob=False,
+              suppress_health_check=list(HealthCheck))
+    @given(st.floats(0.3, 4.0))
+    def case(delay):
+        out = tmp_path / f"maps_{delay:.3f}"
+        child = subprocess.Popen([sys.executable, "-m", "rcm_kin.cli", "torque-map", "psm", "--roll=-30:30:301",
+                                  "--pitch=-30:30:301", "--out", str(out), "--no-figures"],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+        time.sleep(delay)
+        child.send_signal(signal.SIGTERM)
+        _, err = child.communicate(timeout=60)
+        table = out / "torque_map.csv"
+        if child.returncode == -signal.SIGTERM:       # still importing: killed before the command began
+            assert not out.exists() and not err
+        elif child.returncode == 143:
+            assert err.strip().splitlines()[-1].startswith("error: terminated (SIGTERM)")
+            assert not table.exists() or len(table.read_text().splitlines()) == 301 * 301 + 1
+        else:
+            assert child.returncode == 0 and len(table.read_text().splitlines()) == 301 * 301 + 1
+        assert not any("partial" in p.name for p in out.glob("*")) if out.exists() else True
+
+    case()

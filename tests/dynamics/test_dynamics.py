@@ -162,7 +162,7 @@ def test_mapped_grid_equals_single_linearisations(model):
 def test_bad_poses_are_refused(model):
     with pytest.raises(RcmKinError, match="3 finite"):
         equilibrium(model, [0, 0])
-    with pytest.raises(RcmKinError, match="rows of 3"):
+    with pytest.raises(RcmKinError, match="row of 3"):
         linearize_grid(model, np.zeros((4, 2)))
 
 

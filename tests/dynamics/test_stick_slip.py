@@ -177,3 +177,20 @@ def test_a_progress_bar_does_not_stop_the_search():
                              progress=lambda: calls.append(1) or True)
     assert hooked == quiet
     assert len(calls) >= 2
+
+
+@pytest.mark.parametrize("pwm, period, says", [
+    (np.full(10, 1e6), 1e-3, "within \\+-255"),          # the case: a PWM of 1e6 was simulated
+    (np.array([0.0, np.nan]), 1e-3, "finite counts"),
+    (np.zeros((2, 2)), 1e-3, "1-D series"),
+    ("abc", 1e-3, "PWM counts"),
+    (np.zeros(3), 0.0, "0 to 1 s"),
+    (np.zeros(3), float("nan"), "0 to 1 s"),
+])
+def test_simulate_axis_refuses_what_no_driver_sends(pwm, period, says):
+    from rcm_kin.errors import RcmKinError
+
+    friction = AxisFriction(coulomb=COULOMB)
+    with pytest.raises(RcmKinError, match=says) as caught:
+        simulate_axis(friction, flat_plant(), pwm, period, np.zeros(STATE_SIZE))
+    assert caught.value.parameter in ("pwm", "period")

@@ -173,7 +173,7 @@ def test_sysid_cli_contract(shared_data, capsys):
 
 @pytest.mark.parametrize("extra, message", [
     (["--order", "0"], "poles"),
-    (["--pose", "40", "0"], "outside the joint range"),
+    (["--pose", "40", "0"], "roll 40 deg not in [-30 deg, 30 deg]"),
     (["--samples", "10"], "--samples"),
 ])
 def test_sysid_cli_user_errors_are_one_line(tmp_path, capsys, extra, message):

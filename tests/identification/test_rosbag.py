@@ -180,3 +180,15 @@ def test_identification_folders_find_bags(measured_bags, capsys):
         assert [(e.path, e.kind) for e in entries] == [(bag.parent, "step")]
     folder_fit = _sysid_json(bags[0].parent.parent, capsys)
     assert folder_fit["models"][0]["fit_percent"] == _sysid_json(source, capsys)["fit_percent"]
+
+
+def test_a_topic_over_the_message_bound_is_refused_while_read(two_topic_bag):
+    """A bag is read up to the log bound, not to memory's end (the CSV's row bound, as messages)."""
+    from rcm_kin.errors import WorkLimitError
+    from rcm_kin.identification.rosbag import read_joint_states
+
+    with pytest.raises(WorkLimitError, match="more than 3 messages") as caught:
+        read_joint_states(two_topic_bag, "/arm/joints", max_messages=3)
+    assert caught.value.limit == 3 and caught.value.requested == 4
+    t, _ = read_joint_states(two_topic_bag, "/arm/joints", max_messages=5)
+    assert t.size == 4                          # all 5 read; the one without efforts left out

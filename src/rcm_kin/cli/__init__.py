@@ -7,10 +7,14 @@ library, format.
 
 from __future__ import annotations
 
+import contextlib
+import signal
 import sys
+import threading
 import warnings
 from importlib.metadata import PackageNotFoundError, version
 
+from rcm_kin.atomic import stop_writes
 from rcm_kin.cli import (
     calibration,
     control,
@@ -28,10 +32,12 @@ from rcm_kin.cli import (
     views,
 )
 from rcm_kin.cli.common import RAW, Parser, command_options, with_flags
+from rcm_kin.cli.outputs import owned_outputs
 from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.rosbag import DEFAULT_TOPIC, telemetry_topic
 from rcm_kin.identification.telemetry import MAX_GAP, MAX_LOG_BYTES, MAX_LOG_ROWS, TIME_TOLERANCE
 
+TERMINATED = "terminated (SIGTERM): nothing written under a final name after the signal"
 # in the order of ``rcm-kin --help``
 COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
             statics.add_gravity, statics.add_torque_map, counterweights.add_counterweights, calibration.add_calibrate,
@@ -79,7 +85,7 @@ def _version() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run one command; 0 on success, 2 on a user error, 130 on Ctrl-C.
+    """Run one command; 0 on success, 2 on a user error, 130 on Ctrl-C, 143 on SIGTERM.
 
     The one place where errors become output: an :class:`RcmKinError` (and an operating-system
     error on a file) is the single line ``error: ...`` on stderr, after any progress bar is cleared;
@@ -88,18 +94,52 @@ def main(argv: list[str] | None = None) -> int:
     ``warning: ...`` on stderr; on an error only the error line is printed.
     """
     parser, args = build_parser(), None
-    with warnings.catch_warnings(record=True) as caught:     # the filters in force decide what is recorded
+    with warnings.catch_warnings(record=True) as caught, _terminated_as_interrupt():
         try:
             args = parser.parse_args(argv)    # a usage error exits here (status 2), as argparse does
-            with telemetry_topic(getattr(args, "topic", None)):
+            with telemetry_topic(getattr(args, "topic", None)), owned_outputs():
                 args.func(args)
         except (RcmKinError, OSError) as exc:
+            if _TERMINATED:             # a write refused after SIGTERM
+                return _fail(TERMINATED, 143)
             return _fail(_message(exc, command_options(parser, getattr(args, "command", None))), 2)
+        except Terminated:
+            return _fail(TERMINATED, 143)
         except KeyboardInterrupt:
             return _fail("interrupted", 130)
+        if _TERMINATED:                 # the signal landed where Python swallows exceptions
+            return _fail(TERMINATED, 143)
     for message in dict.fromkeys(" ".join(str(w.message).split()) for w in caught):
         print(f"warning: {message}", file=sys.stderr)
     return 0
+
+
+_TERMINATED: list[int] = []
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM received: unwinds like Ctrl-C (temporaries removed, clusters and pools closed)."""
+
+
+@contextlib.contextmanager
+def _terminated_as_interrupt():
+    """While a command runs in the main thread, SIGTERM raises :class:`Terminated` (a second one
+    while cleaning up is ignored: the clean-up finishes); the previous handler is restored after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum, frame):
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        _TERMINATED.append(signum)
+        stop_writes("the run was terminated (SIGTERM)")
+        raise Terminated()
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _message(exc: Exception, options: set[str]) -> str:

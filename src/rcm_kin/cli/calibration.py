@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rcm_kin.cli.common import BadValue, add_force, add_json, add_params, emit, new_output, path_text
+from rcm_kin.cli.common import BadValue, add_json, add_params, emit, path_text
+from rcm_kin.cli.outputs import add_force, new_output
 from rcm_kin.model import load_robot
 
 BAND_HELP = "a level in (0, 1), e.g. 0.9"

@@ -8,7 +8,7 @@ import argparse
 import json
 import math
 import re
-from pathlib import Path
+import sys
 
 import numpy as np
 
@@ -214,29 +214,9 @@ def _non_finite(value, where: str = "") -> str:
     return ""
 
 
-def new_output(path: str, force: bool, suffixes: tuple[str, ...] = ()) -> Path:
-    """``path`` as a file the command may write: a clear error if it is empty, a folder, has none of
-    ``suffixes`` (when given), exists and ``force`` is off, or its folder does not exist."""
-    if not str(path).strip():
-        raise RcmKinError("an empty output path")
-    out = Path(path)
-    if suffixes and out.suffix.lower() not in suffixes:
-        raise RcmKinError(f"{out}: the output file must end in {' or '.join(suffixes)}")
-    if out.is_dir():
-        raise RcmKinError(f"{out} is a folder: give a file name")
-    if out.exists() and not force:
-        raise RcmKinError(f"{out} exists: choose another output file or add --force")
-    if not out.parent.is_dir():
-        raise RcmKinError(f"no folder {out.parent} for {out.name}")
-    return out
-
-
-def add_force(parser: argparse.ArgumentParser, help_text: str = "overwrite the output file if it exists") -> None:
-    parser.add_argument("--force", action="store_true", help=help_text)
-
-
 def progress_wanted(args) -> bool:
-    """Progress bars on stderr unless ``--json`` (scripts); a user error is printed after they are
-    cleared (:func:`rcm_kin.cli.main`)."""
-    return not getattr(args, "json", False)
+    """Progress bars on stderr when it is a terminal, unless ``--json`` (scripts): a log file or a
+    pipe gets the ``error:``/``warning:`` lines alone, each on its own line. A user error is
+    printed after the bars are cleared (:func:`rcm_kin.cli.main`)."""
+    return not getattr(args, "json", False) and sys.stderr.isatty()
 

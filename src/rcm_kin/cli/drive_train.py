@@ -7,19 +7,18 @@ import numpy as np
 
 from rcm_kin.cli.common import (
     RAW,
-    add_force,
     add_json,
     add_params,
     check_finite,
     count,
     emit,
     finite,
-    new_output,
     path_text,
     progress_wanted,
     psm_robot,
     require_psm,
 )
+from rcm_kin.cli.outputs import add_force, new_output
 
 EPILOG_IDENTIFY = ("example: rcm-kin identify psm ../shared/data --out identified.toml --cv\n"
                    "         rcm-kin predict psm roll_step_response_roll_0_pitch_0.csv --joint roll "

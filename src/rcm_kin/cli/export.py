@@ -4,16 +4,8 @@ PSM's holding PWM for the firmware)."""
 
 from __future__ import annotations
 
-from rcm_kin.cli.common import (
-    RAW,
-    add_force,
-    add_json,
-    add_params,
-    any_robot,
-    emit,
-    is_bundled_psm,
-    new_output,
-)
+from rcm_kin.cli.common import RAW, add_json, add_params, any_robot, emit, is_bundled_psm
+from rcm_kin.cli.outputs import add_force, new_output
 from rcm_kin.cli.packages import add_package_dirs, package_dirs
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model import load_robot

@@ -6,20 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.cli.common import (
-    RAW,
-    add_force,
-    add_json,
-    add_params,
-    count,
-    driven_model,
-    emit,
-    floats,
-    new_output,
-    path_text,
-    progress_wanted,
-)
-from rcm_kin.errors import RcmKinError, output_folder
+from rcm_kin.cli.common import RAW, add_json, add_params, count, driven_model, emit, floats, path_text, progress_wanted
+from rcm_kin.cli.outputs import FOLDER_FORCE, add_force, new_folder, new_output
+from rcm_kin.errors import RcmKinError
 
 MAX_SAMPLES = 100_000     # samples of one step or segment: the logs hold a few thousand
 EPILOG_SYSID = ("examples: rcm-kin sysid roll_step.csv --joint roll --json   (2nd-order fit of the step)\n"
@@ -52,6 +41,7 @@ def add_sysid(sub) -> None:
                    help="pose in deg for the physics comparison (default: from the file name)")
     add_params(p, "drive parameter TOML of the physics model (default: the shipped set)")
     p.add_argument("--out", type=path_text, help="folder: write the per-pose table (CSV) when LOG is a folder")
+    p.add_argument("--force", action="store_true", help=FOLDER_FORCE)
     add_json(p, '{"num", "den", "fit_percent", "A", "B", "C", "D", ...}; a folder gives {"models": [...]}')
     p.set_defaults(func=cmd_sysid)
 
@@ -95,7 +85,7 @@ def _sysid_folder(args, model, options: dict) -> None:
              + (f"   physics DC {r['physics_dc_gain']:+.4f}, poles {r['physics_poles']}" if "physics_poles" in r
                 else "") for r in rows]
     if args.out:
-        path = write_pose_table(models, output_folder(args.out) / f"{args.joint}_pose_models.csv")
+        path = write_pose_table(models, new_folder(args.out, args.force) / f"{args.joint}_pose_models.csv")
         payload["written"] = str(path)
         lines.append(f"wrote {path}")
     emit(args, payload, "\n".join(lines))

@@ -4,18 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rcm_kin.cli.common import (
-    RAW,
-    BadValue,
-    add_force,
-    add_json,
-    add_params,
-    emit,
-    new_output,
-    path_text,
-    psm_robot,
-    require_psm,
-)
+from rcm_kin.cli.common import RAW, BadValue, add_json, add_params, emit, path_text, psm_robot, require_psm
+from rcm_kin.cli.outputs import add_force, new_output
 
 EPILOG_PREDICT = ("example: rcm-kin predict psm roll_step_response_roll_0_pitch_0.csv --joint roll --plot roll.png "
                   "--json\n         rcm-kin predict psm roll_step_response_roll_0_pitch_0.csv --joint roll --band 0.9 "

@@ -15,7 +15,8 @@ from rcm_kin.cli.common import (
     psm_robot,
     require_psm,
 )
-from rcm_kin.errors import RcmKinError, output_folder
+from rcm_kin.cli.outputs import FOLDER_FORCE, new_folder
+from rcm_kin.errors import RcmKinError
 from rcm_kin.simulation.controllers import CONTROLLERS
 
 EPILOG_ROBUSTNESS = (
@@ -63,6 +64,7 @@ def add_robustness(sub) -> None:
                    help="samples per Dask task (default: about 4 tasks per worker)")
     add_scheduler(p)
     p.add_argument("--out", metavar="DIR", type=path_text, help="write the empirical-CDF figure (PNG) into DIR")
+    p.add_argument("--force", action="store_true", help=FOLDER_FORCE)
     add_json(p, '{"samples", "seed", "experiment", "controllers": {NAME: {"roll": {"max_error_deg": {"p5", "median", '
                 '"p95", "worst"}, "mean_error_deg": {...}, "saturated_fraction"}, "pitch": {...}, "unstable_fraction", '
                 '"stability": {...} | null}}, "uncertainty": {PARAMETER: {"nominal", "sigma", "distribution", '
@@ -86,7 +88,7 @@ def cmd_robustness(args) -> None:
     study = Study(params, uncertain_parameters(params, errors), tuple(dict.fromkeys(args.controller)),
                   args.experiment, args.duration, args.skip)
     check_robustness(study, args.samples)
-    out = output_folder(args.out) if args.out else None
+    out = new_folder(args.out, args.force) if args.out else None
     with dask_client(args.scheduler, args.workers) as client:
         result = run_robustness(study, args.samples, args.seed, client, args.batch_size, progress=progress_wanted(args))
     lines = [f"{args.experiment}: {result.samples} samples (seed {args.seed}); max error deg p5/median/p95/worst"]
@@ -129,6 +131,7 @@ def add_sweep(sub) -> None:
     add_params(p)
     add_scheduler(p)
     p.add_argument("--out", metavar="DIR", type=path_text, required=True, help="folder for sweep_<design>.csv and .png")
+    p.add_argument("--force", action="store_true", help=FOLDER_FORCE)
     add_json(p, '{"design", "rows": [{column: value}], "table", "figure"}')
     p.set_defaults(func=cmd_sweep)
 
@@ -152,7 +155,7 @@ def cmd_sweep(args) -> None:
         check_weights_sweep(len(args.error_deg), len(args.pwm_fraction), args.duration)
         points, task, shared = list(product(args.error_deg, args.pwm_fraction)), sweeps.weights_batch, \
             {"params": params, "duration": args.duration}
-    out = output_folder(args.out)
+    out = new_folder(args.out, args.force)
     with dask_client(args.scheduler, args.workers) as client:
         batches = [[point] for point in points]
         rows = [row for batch in map_batches(client, task, batches, progress_wanted(args), f"sweep {args.design}",

@@ -20,12 +20,13 @@ from rcm_kin.cli.common import (
     path_text,
 )
 from rcm_kin.cli.control import model_line
+from rcm_kin.cli.outputs import FOLDER_FORCE, new_folder
 from rcm_kin.cli.statics import joint_assignments
 from rcm_kin.cli.tuning import add_tune_options, check_tune_options, run_tune
 from rcm_kin.control.friction import DEFAULT_RAMP_DEG_S
 from rcm_kin.control.weights import Weights
 from rcm_kin.dynamics.drive import DRIVEN
-from rcm_kin.errors import RcmKinError, output_folder
+from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import FIRMWARE_PERIOD, HOME_INSERTION
 
 MAX_CHECK_POINTS = 201    # 201 x 201 poses: about a minute of eigenvalues
@@ -67,6 +68,7 @@ def add_schedule(sub) -> None:
     add_tune_options(p)
     add_params(p, "drive parameter TOML of this robot (default: the one its sidecar names; a schedule needs one)")
     p.add_argument("--out", required=True, type=path_text, help="output folder (created)")
+    p.add_argument("--force", action="store_true", help=FOLDER_FORCE)
     add_json(p, '{"files", "stable", weakest point, "model", "input_unit"}; with --tune also "chosen", "values", '
                 '"scores", "criteria"')
     p.set_defaults(func=cmd_schedule)
@@ -125,7 +127,7 @@ def _psm_schedule(args, model) -> None:
     points = CHECK_POINTS if args.check_points is None else args.check_points
     schedule = schedule_gains(model, rolls, pitches, insertion, weights, args.friction_ramp)
     survey = stability_survey(model, schedule, points=points)
-    files = write_gain_schedule(schedule, output_folder(args.out), survey, args.gravity_feedforward,
+    files = write_gain_schedule(schedule, new_folder(args.out, args.force), survey, args.gravity_feedforward,
                                 args.friction_feedforward)
     weakest = survey.weakest()
     payload = {"files": [str(f) for f in files], "stable": survey.stable, **weakest, "model": model.model_label,

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import sys
-
 from rcm_kin.cli.common import (
     RAW,
     add_json,
@@ -17,7 +15,7 @@ from rcm_kin.cli.common import (
     psm_robot,
     require_psm,
 )
-from rcm_kin.errors import output_folder
+from rcm_kin.cli.outputs import FOLDER_FORCE, new_folder
 from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS, PWM_LIMIT
 from rcm_kin.simulation.controllers import CONTROLLERS, TUNED
 
@@ -62,6 +60,7 @@ def add_simulate(sub) -> None:
     p.add_argument("--seed", type=count(0, 2**32 - 1), default=0, help="random seed of the encoder noise (default 0)")
     add_params(p)
     p.add_argument("--plot", metavar="DIR", type=path_text, help="write reference/measured/error plots (PNG) into DIR")
+    p.add_argument("--force", action="store_true", help=FOLDER_FORCE)
     add_json(p, '{"roll": {"max_error_deg", "mean_error_deg", "rms_error_deg", ...}, "pitch": {...}}')
     p.set_defaults(func=cmd_simulate)
 
@@ -77,7 +76,7 @@ def cmd_simulate(args) -> None:
     settings = FirmwareSettings(period=1.0 / args.rate, noise_counts=args.noise_counts, **limits)
     result = run_experiment(args.experiment, args.controller, args.duration, load_drive_parameters(args.params),
                             settings, args.trajectory, seed=args.seed,
-                            progress=progress_wanted(args) and sys.stderr.isatty(), gains=args.gains)
+                            progress=progress_wanted(args), gains=args.gains)
     metrics = tracking_metrics(result, args.skip)
     payload = {axis: vars(m) for axis, m in metrics.items()}
     lines = [f"{args.experiment} with {args.controller}, {result.time[-1]:.2f} s at {args.rate:g} Hz:"] + [
@@ -86,7 +85,7 @@ def cmd_simulate(args) -> None:
     if args.plot:
         from rcm_kin.plotting import tracking_figure
 
-        path = tracking_figure(result, output_folder(args.plot) / f"{args.experiment}_{args.controller}.png",
+        path = tracking_figure(result, new_folder(args.plot, args.force) / f"{args.experiment}_{args.controller}.png",
                                title=f"{args.experiment}, {args.controller}:")
         lines.append(f"wrote {path}")
     emit(args, payload, "\n".join(lines))

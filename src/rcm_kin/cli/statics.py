@@ -18,7 +18,8 @@ from rcm_kin.cli.common import (
     path_text,
     progress_wanted,
 )
-from rcm_kin.errors import RcmKinError, output_folder
+from rcm_kin.cli.outputs import FOLDER_FORCE, new_folder
+from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.model import load_robot
 
@@ -72,6 +73,7 @@ def add_torque_map(sub) -> None:
     p.add_argument("--no-counterweights", action="store_true", help="remove the counterweights' mass")
     add_params(p, OWN_DRIVE_HELP)
     p.add_argument("--out", required=True, type=path_text, help="output folder (created)")
+    p.add_argument("--force", action="store_true", help=FOLDER_FORCE)
     p.add_argument("--format", choices=("csv", "npz"), default="csv",
                    help="tables as csv (text, 9 decimals; default) or npz (NumPy, full precision, one array per "
                         "CSV column: np.load; fastest for large maps)")
@@ -164,7 +166,7 @@ def psm_torque_map(args) -> None:
         robot.check_limits(robot.check_q([*np.radians(corner), insertion], allow_short=True))
     if args.band is not None:
         residuals_of(drive)                          # none in the file: one line, nothing written
-    gmap, files = write_gravity_maps(robot, drive, roll, pitch, insertion, output_folder(args.out),
+    gmap, files = write_gravity_maps(robot, drive, roll, pitch, insertion, new_folder(args.out, args.force),
                                      progress=progress_wanted(args), table=args.format, figures=not args.no_figures,
                                      band=args.band)
     payload = {"files": [str(f) for f in files], "poses": int(gmap.effort.tau[..., 0].size), "model": drive.model}
@@ -197,7 +199,7 @@ def grid_torque_map(args) -> None:
     grid, q = grid_and_pose(robot, args.grid, args.at)
     tmap = torque_map(robot, grid, q, drive, counterweights=not args.no_counterweights,
                       progress=progress_wanted(args), band=args.band)
-    files = write_torque_map(tmap, output_folder(args.out), args.format, figures=not args.no_figures)
+    files = write_torque_map(tmap, new_folder(args.out, args.force), args.format, figures=not args.no_figures)
     payload = {"files": [str(f) for f in files], "poses": tmap.poses, "joints": list(tmap.joints),
                "model": tmap.model}
     emit_map(args, payload, files, tmap.params, tmap.extra)

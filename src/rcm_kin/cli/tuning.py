@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 
 from rcm_kin.atomic import write_text
 from rcm_kin.cli.common import count, emit, finite, progress_wanted
+from rcm_kin.cli.outputs import new_folder
 from rcm_kin.control.friction import DEFAULT_RAMP_DEG_S
-from rcm_kin.errors import RcmKinError, output_folder
+from rcm_kin.errors import RcmKinError
 
 TUNE_HELP = ("tune the firmware law by simulation instead of designing it by LQR/LQI: differential evolution "
              "over a fixed and a pose-scheduled gain set (Kp, Kd of both axes, pitch Ki, friction compensation, "
@@ -87,9 +87,9 @@ def run_tune(args, model) -> None:
                           "deg, 80 mm): leave out --grid and --insertion")
     if args.tune_draws > args.draws:
         raise RcmKinError(f"--tune-draws ({args.tune_draws}) is at most --draws ({args.draws})")
-    folder = output_folder(args.out)
+    folder = new_folder(args.out, args.force)
     study = design_study(load_drive_parameters(args.params), args.draws, args.seed, args.check_seed, args.tune_draws,
-                         args.budget, args.workers, progress=progress_wanted(args) and sys.stderr.isatty(),
+                         args.budget, args.workers, progress=progress_wanted(args),
                          generations=args.generations)
     survey = stability_survey(model, study.schedule, points=41)
     files = write_gain_schedule(study.schedule, folder, survey, gravity_feedforward=True, friction_feedforward=True)

@@ -4,18 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rcm_kin.cli.common import (
-    RAW,
-    add_force,
-    add_json,
-    any_robot,
-    count,
-    emit,
-    joint_values,
-    new_output,
-    path_text,
-    progress_wanted,
-)
+from rcm_kin.atomic import MANIFEST
+from rcm_kin.cli.common import RAW, add_json, any_robot, count, emit, joint_values, path_text, progress_wanted
+from rcm_kin.cli.outputs import FOLDER_FORCE, add_force, new_folder, new_output
 from rcm_kin.cli.packages import add_package_dirs, package_dirs
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model import load_robot
@@ -51,6 +42,7 @@ def add_report(sub) -> None:
     p = sub.add_parser("report", help="run the main job on the bundled models and write index.html",
                        epilog=EPILOG_REPORT)
     p.add_argument("--out", required=True, type=path_text, help="output folder (created)")
+    p.add_argument("--force", action="store_true", help=FOLDER_FORCE)
     p.add_argument("--data", type=path_text,
                    help="folder of measured logs (psm-sysid layout): adds calibration, identification "
                         "per pose and the grey-box fit, and uses its MTM recording for target following")
@@ -127,6 +119,7 @@ def _serve(robot, q, frames: tuple[str, ...], packages=None) -> None:
 def cmd_report(args) -> None:
     from rcm_kin.report import write_report
 
-    index = write_report(args.out, args.data, args.map_points, progress=progress_wanted(args))
-    files = sorted(str(f.relative_to(index.parent)) for f in Path(index.parent).rglob("*") if f.is_file())
+    index = write_report(new_folder(args.out, args.force), args.data, args.map_points, progress=progress_wanted(args))
+    files = sorted(str(f.relative_to(index.parent)) for f in Path(index.parent).rglob("*")
+                   if f.is_file() and f.name != MANIFEST)
     emit(args, {"index": str(index), "files": files}, f"report written: {index} ({len(files)} files)")

@@ -30,7 +30,7 @@ from rcm_kin.control.friction import (
 )
 from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.weights import Weights
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, as_numbers
 from rcm_kin.firmware_rules import bilinear
 from rcm_kin.hardware import HOME_INSERTION, INSERTION_KP
 from rcm_kin.model import load_robot
@@ -122,7 +122,7 @@ class GainSchedule:
 
 def check_grid(values, what: str, lower: float, upper: float) -> np.ndarray:
     """``values`` (deg) as a strictly increasing grid inside the joint range ``[lower, upper]`` (rad)."""
-    values = np.asarray(values, dtype=float)
+    values = as_numbers(values, f"{what}_deg", f"the {what} grid in degrees")
     if values.ndim != 1 or values.size < 2 or not np.all(np.isfinite(values)):
         raise RcmKinError(f"the {what} grid needs at least 2 finite values (deg)")
     if np.any(np.diff(values) <= 0):

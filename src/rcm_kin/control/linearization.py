@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.dynamics.state_space import PWM_UNIT, DrivenDynamics, holding_pwm
+from rcm_kin.dynamics.state_space import PWM_UNIT, DrivenDynamics, check_pose, holding_pwm
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
@@ -90,22 +90,17 @@ def zero_order_hold(A: np.ndarray, B: np.ndarray, period: float) -> tuple[np.nda
 
 def equilibrium(model: DrivenDynamics, q) -> tuple[np.ndarray, np.ndarray]:
     """``(x0, u0)``: the pose ``q`` (rad, m; the model's joints) at rest and its holding input."""
-    q = np.asarray(q, dtype=float).ravel()
-    n = len(model.joints)
-    if q.shape != (n,) or not np.all(np.isfinite(q)):
-        raise RcmKinError(f"an equilibrium pose is {n} finite values ({', '.join(model.joints)})")
-    check_in_range(model, q[None])
-    return np.r_[q, np.zeros(n)], holding_pwm(model, q)
+    q = check_pose(model, q)
+    return np.r_[q, np.zeros(len(model.joints))], holding_pwm(model, q)
 
 
 def check_in_range(model: DrivenDynamics, Q: np.ndarray, tol: float = 1e-9) -> None:
-    """Refuse poses (N, n) or (n,) outside the modelled joints' limits: the model means nothing there."""
+    """Refuse poses (N, n) or (n,) outside the modelled joints' limits (the model means nothing
+    there): the first such pose, as :func:`~rcm_kin.dynamics.state_space.check_pose` refuses it."""
     Q = np.atleast_2d(Q)
-    outside = np.any((Q < model.lower - tol) | (Q > model.upper + tol), axis=0)
-    if np.any(outside):
-        limits = ", ".join(f"{j} {lo:.4g} to {hi:.4g}" for j, lo, hi, o in
-                           zip(model.joints, model.lower, model.upper, outside) if o)
-        raise RcmKinError(f"pose outside the joint range ({limits}; rad, m)")
+    outside = np.flatnonzero(np.any((Q < model.lower - tol) | (Q > model.upper + tol), axis=1))
+    if outside.size:
+        check_pose(model, Q[outside[0]], parameter="Q")
 
 
 def linearize(model: DrivenDynamics, q) -> Linearization:
@@ -144,10 +139,17 @@ def linearize_grid(model: DrivenDynamics, Q, chunk: int = 4096, compile: bool = 
     one C loop into the result arrays (about 1 us a pose for 7 joints; ``chunk`` matters only
     interpreted): cheaper for many joints. Default: ``"ad"`` for a model with a drive (the PSM's
     tables, bit for bit as before), ``"rest"`` for a torque-input model."""
-    Q = np.ascontiguousarray(np.atleast_2d(np.asarray(Q, dtype=float)))
     n = len(model.joints)
-    if Q.ndim != 2 or Q.shape[1] != n or not np.all(np.isfinite(Q)):
-        raise RcmKinError(f"poses must be finite rows of {n} values ({', '.join(model.joints)}), got shape {Q.shape}")
+    try:
+        Q = np.ascontiguousarray(np.atleast_2d(np.asarray(Q, dtype=float)))
+    except (TypeError, ValueError):
+        raise RcmKinError(f"`Q` must be rows of {n} numbers ({', '.join(model.joints)})", parameter="Q") from None
+    if Q.ndim != 2 or Q.shape[1] != n or Q.shape[0] == 0 or not np.all(np.isfinite(Q)):
+        raise RcmKinError(f"poses must be at least one finite row of {n} values ({', '.join(model.joints)}), "
+                          f"got shape {Q.shape}",
+                          parameter="Q")
+    if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
+        raise RcmKinError(f"`chunk` is a whole number of poses, at least 1, got {chunk!r}", parameter="chunk")
     method = method or ("ad" if model.pwm_input else "rest")
     if method not in ("ad", "rest"):
         raise RcmKinError(f"`method` is 'ad' or 'rest', got {method!r}", parameter="method")

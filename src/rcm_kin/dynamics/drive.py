@@ -45,7 +45,7 @@ from rcm_kin.dynamics.drive_schema import (
     joint_tables,
 )
 from rcm_kin.dynamics.drive_uncertainty import DriveUncertainty, parse_uncertainty, uncertainty_lines
-from rcm_kin.errors import ParameterFileError, RcmKinError, RcmKinWarning, read_toml, warn
+from rcm_kin.errors import ParameterFileError, RcmKinError, RcmKinWarning, read_text, read_toml, warn
 from rcm_kin.hardware import PWM_LIMIT
 from rcm_kin.model.loading import urdf_dir
 
@@ -132,7 +132,7 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
     value is checked against its unit and range (:mod:`rcm_kin.dynamics.drive_schema`)."""
     path = Path(path) if path is not None else DEFAULT_PARAMETERS
     try:
-        text = path.read_text()
+        text = read_text(path, "drive parameter file")
     except (OSError, UnicodeDecodeError):
         text = None                          # read_toml says what is wrong with the file
     key = (os.path.abspath(path), text)

@@ -28,7 +28,7 @@ import casadi as ca
 import numpy as np
 
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, model_label, resolve_drive
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.hardware import DRIVER_PWM_RANGE
 from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.masses import require_masses
@@ -222,10 +222,40 @@ def _offset_gravity(robot: Robot, joints, gravity, offsets: dict, phi, q) -> ca.
     return ca.gradient(potential, q)
 
 
-def holding_pwm(model: DrivenDynamics, q) -> np.ndarray:
+def holding_pwm(model: DrivenDynamics, q, *, allow_outside_limits: bool = False) -> np.ndarray:
     """Input (n,) that holds the modelled joints still at ``q`` (rad, m): ``g(q) / k_u``; PWM
-    counts through a drive, the torque itself (N m, N) for a torque-input model."""
+    counts through a drive, the torque itself (N m, N) for a torque-input model.
+    ``allow_outside_limits``: evaluate a pose outside the joint limits (refused by default)."""
+    q = check_pose(model, q, allow_outside_limits=allow_outside_limits)
     return np.array(model.gravity(q)).ravel() / model.drive.input_gain
+
+
+def check_pose(model: DrivenDynamics, q, *, allow_outside_limits: bool = False, parameter: str = "q") -> np.ndarray:
+    """``q`` as the modelled joints' pose (n,) (rad, m): numbers, finite, of the model's size and
+    within its joints' limits unless ``allow_outside_limits``; else an RcmKinError naming
+    ``parameter`` (a :class:`~rcm_kin.errors.JointLimitError` for the limits), as
+    :meth:`Robot.check_pose` for a robot's pose."""
+    if not isinstance(model, DrivenDynamics):
+        raise RcmKinError(f"`model` must be a driven-joint model (rk.driven_dynamics(robot)), got "
+                          f"{type(model).__name__}", parameter="model")
+    n = len(model.joints)
+    try:
+        q = np.asarray(q, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise RcmKinError(f"a pose is {n} numbers ({', '.join(model.joints)}), got {str(q)[:60]!r}",
+                          parameter=parameter) from None
+    if q.shape != (n,) or not np.all(np.isfinite(q)):
+        raise RcmKinError(f"a pose is {n} finite numbers ({', '.join(model.joints)}), got {q.tolist()[:8]}",
+                          parameter=parameter)
+    outside = (q < model.lower - 1e-9) | (q > model.upper + 1e-9)
+    if np.any(outside) and not allow_outside_limits:
+        bad = np.flatnonzero(outside)
+        shown = lambda i, x: f"{np.degrees(x):.6g} deg" if model.units[i] == "rad" else f"{x:.6g} m"  # noqa: E731
+        raise JointLimitError("outside the joint limits: " + "; ".join(
+            f"{model.joints[i]} {shown(i, q[i])} not in [{shown(i, model.lower[i])}, {shown(i, model.upper[i])}]"
+            for i in bad), joints=tuple(model.joints[i] for i in bad), values=q[bad].copy(),
+            lower=model.lower[bad].copy(), upper=model.upper[bad].copy(), parameter=parameter)
+    return q
 
 
 def check_state(x, u, model: DrivenDynamics | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -53,6 +53,7 @@ from rcm_kin import firmware_rules
 from rcm_kin.dynamics.axis_friction import MAX_ELEMENTS, AxisFriction
 from rcm_kin.errors import RcmKinError
 from rcm_kin.firmware_rules import quantise, saturate
+from rcm_kin.hardware import DRIVER_PWM_RANGE
 
 if TYPE_CHECKING:
     from rcm_kin.dynamics.state_space import DrivenDynamics
@@ -313,11 +314,31 @@ def _checked(state: np.ndarray) -> np.ndarray:
 
 def simulate_axis(friction: AxisFriction, plant: AxisPlant, pwm: np.ndarray, period: float,
                   state: np.ndarray) -> np.ndarray:
-    """Measured angle (rad) after each of ``pwm``'s samples, each held for ``period`` s, from
-    ``state`` (see :func:`rest_state`; advanced in place)."""
-    substeps = substep_count(period)
+    """Measured angle (rad) after each of ``pwm``'s samples (counts, within the driver's
+    +-:data:`~rcm_kin.hardware.DRIVER_PWM_RANGE`), each held for ``period`` s, from ``state``
+    (see :func:`rest_state`; advanced in place)."""
+    substeps = substep_count(_checked_period(period))
     return _run(friction.vector(), plant.input_gain, plant.back_emf, plant.rotor_inertia, plant.grid,
-                plant.gravity, plant.inertia, np.asarray(pwm, dtype=float), _checked(state), period, substeps)
+                plant.gravity, plant.inertia, _checked_pwm(pwm), _checked(state), period, substeps)
+
+
+def _checked_pwm(pwm) -> np.ndarray:
+    """``pwm`` as a 1-D float array of finite counts within the driver's range, or an RcmKinError."""
+    try:
+        pwm = np.asarray(pwm, dtype=float)
+    except (TypeError, ValueError):
+        raise RcmKinError(f"`pwm` must be PWM counts, got {str(pwm)[:60]!r}", parameter="pwm") from None
+    if pwm.ndim != 1 or not np.all(np.isfinite(pwm)) or np.any(np.abs(pwm) > DRIVER_PWM_RANGE):
+        largest = np.nanmax(np.abs(pwm), initial=0)
+        raise RcmKinError(f"`pwm` must be a 1-D series of finite counts within +-{DRIVER_PWM_RANGE:.0f} (the "
+                          f"8-bit driver's range), got shape {pwm.shape}, largest {largest:g}", parameter="pwm")
+    return pwm
+
+
+def _checked_period(period) -> float:
+    if isinstance(period, bool) or not isinstance(period, (int, float, np.number)) or not 0 < period <= 1.0:
+        raise RcmKinError(f"`period` is the PWM's hold time, 0 to 1 s, got {period!r}", parameter="period")
+    return float(period)
 
 
 def simulate_axis_closed(friction: AxisFriction, plant: AxisPlant, law: np.ndarray, excitation: np.ndarray,

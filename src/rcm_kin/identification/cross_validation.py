@@ -12,7 +12,7 @@ the logs do not determine keep the fit as good (:func:`undetermined_ranges`).
 from __future__ import annotations
 
 import os
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -30,6 +30,7 @@ from rcm_kin.identification.drive_train import (
     predict_log,
     residuals,
 )
+from rcm_kin.parallel import process_pool
 
 INNER_POLISH = 10      # least-squares evaluations of an inner fold's polish (it starts next to its optimum)
 RANGE_POINTS = 12      # grid points of an undetermined parameter's scan
@@ -95,7 +96,7 @@ def fit_with_cv(search: Search, plants: list[AxisPlant], logs: list[AxisLog], se
     tick = progress or (lambda: None)
     subset = lambda drop: ([plants[i] for i in range(n) if i not in drop],  # noqa: E731
                            [logs[i] for i in range(n) if i not in drop])
-    with (ProcessPoolExecutor(workers) if workers > 1 else _Serial()) as pool:
+    with (process_pool(workers, fork=False) if workers > 1 else _Serial()) as pool:
         pending = {pool.submit(_fit_task, search, plants, logs, seed, generations[0], speed_bounds): ("all", None)}
         if cv:
             pending.update({pool.submit(_fit_task, search, *subset({k}), seed, generations[1], speed_bounds):

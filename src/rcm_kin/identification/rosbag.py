@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.errors import LogDataError, LogDataWarning, RcmKinError, warn
+from rcm_kin.errors import LogDataError, LogDataWarning, RcmKinError, WorkLimitError, warn
 
 DEFAULT_TOPIC = "/psm_joint_telemetry"
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -63,9 +63,11 @@ def _reader(path: Path):
     return (McapReader if path.suffix == ".mcap" else Sqlite3Reader)(path)
 
 
-def read_joint_states(path: str | Path, topic: str | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def read_joint_states(path: str | Path, topic: str | None = None,
+                      max_messages: int | None = None) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Time (s, from the first message) and the columns ``(joint, field)`` of the JointState
-    messages on ``topic`` (default: the current :func:`telemetry_topic`)."""
+    messages on ``topic`` (default: the current :func:`telemetry_topic`); a topic with more than
+    ``max_messages`` messages is a WorkLimitError (read up to the bound, not to memory's end)."""
     from rosbags.rosbag2 import ReaderError
     from rosbags.typesys import Stores, get_typestore
 
@@ -82,6 +84,10 @@ def read_joint_states(path: str | Path, topic: str | None = None) -> tuple[np.nd
                 raise RcmKinError(f"{path}: no {JOINT_STATE} topic {topic} (the bag has: "
                                   f"{', '.join(found) or 'none'}); choose one with `topic`", parameter="topic")
             for connection, timestamp, raw in reader.messages(connections):
+                if max_messages is not None and len(rows) >= max_messages:
+                    raise WorkLimitError(f"{path}: the topic {topic} holds more than {max_messages:,} messages, the "
+                                         "bound of one log: cut the recording", requested=len(rows) + 1,
+                                         limit=max_messages)
                 msg = typestore.deserialize_cdr(raw, connection.msgtype)
                 rows.append({(name, field): float(values[i])
                              for field in FIELDS if len(values := getattr(msg, field)) == len(msg.name)

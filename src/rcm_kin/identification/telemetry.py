@@ -34,7 +34,7 @@ _TIME_COLUMNS = ("/psm_joint_telemetry/header/stamp", "__time", "time")
 # repeated or going back). A log at the bounds reads in well under a minute on one core, in about
 # 8 bytes a value (a few hundred MB for 2 million rows of 20 columns).
 MAX_LOG_BYTES = 256 * 2**20     # bytes of one CSV: about 70 times the largest shared log
-MAX_LOG_ROWS = 2_000_000        # data rows of one CSV: 80 min of telemetry at the 2.4 ms loop
+MAX_LOG_ROWS = 2_000_000        # data rows of one CSV (messages of one bag topic): 80 min at the 2.4 ms loop
 TIME_TOLERANCE = 1e-6           # s a stamp may lie before the one above it (float rounding of a
                                 # stamp in Unix seconds: 0.24 us at 1.7e9 s; the stamps are 10 us
                                 # or 1 ms apart)
@@ -167,7 +167,7 @@ def check_time(path: str | Path, t: np.ndarray, column: str, lines: np.ndarray |
 def load_bag(path: str | Path, topic: str | None = None) -> TelemetryLog:
     """A :class:`TelemetryLog` from a ROS 2 bag (:func:`rcm_kin.identification.rosbag.read_joint_states`
     of ``topic``, default the current :func:`~rcm_kin.identification.rosbag.telemetry_topic`)."""
-    t, data = read_joint_states(path, topic)
+    t, data = read_joint_states(path, topic, max_messages=MAX_LOG_ROWS)
     check_time(path, t, "header/stamp", noun="complete message")
     pick = lambda field: {j: data[(j, field)] for j in JOINTS if (j, field) in data}  # noqa: E731
     position, pwm = pick("position"), pick("velocity")

@@ -9,7 +9,7 @@ import pinocchio as pin
 
 from rcm_kin.model.constrained import closure_residual
 from rcm_kin.model.reduced import tree_configuration
-from rcm_kin.model.robot import Robot, RobotData
+from rcm_kin.model.robot import Robot, RobotData, check_robot
 
 
 @dataclass(frozen=True)
@@ -29,11 +29,13 @@ def frame_placement(robot: Robot, q: np.ndarray, frame: str, data: RobotData | N
 
 
 def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None,
-                       data: RobotData | None = None) -> ForwardKinematics:
+                       data: RobotData | None = None, *, allow_outside_limits: bool = False) -> ForwardKinematics:
     """Frames of interest (default: the sidecar's ``frames``) at actuated ``q`` (rad, m).
 
-    ``data``: the caller's workspace (:meth:`Robot.create_data`); default this thread's own."""
-    q = robot.check_q(q)
+    ``data``: the caller's workspace (:meth:`Robot.create_data`); default this thread's own;
+    ``allow_outside_limits``: evaluate a pose outside the joint limits (refused by default,
+    :meth:`Robot.check_pose`)."""
+    q = check_robot(robot).check_pose(q, allow_outside_limits=allow_outside_limits)
     data = robot.workspace(data)
     frames = robot.description.frames if frames is None else frames
     ids = [robot.frame_id(name) for name in frames]

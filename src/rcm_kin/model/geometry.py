@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pinocchio as pin
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, read_text
 
 PACKAGE = re.compile(r"^package://([^/]+)/(.*)$")
 
@@ -89,7 +89,7 @@ def visual_geometry(robot, package_dirs: Mapping[str, str | Path] | None = None)
     says; a fresh model for the caller."""
     urdf = Path(robot.description.urdf)
     try:
-        text = urdf.read_text()
+        text = read_text(urdf, "URDF")
     except (OSError, UnicodeDecodeError) as exc:
         raise RcmKinError(f"cannot read the URDF {urdf}: {exc}") from None
     text = resolved_urdf(text, urdf, package_dirs)

@@ -25,22 +25,25 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.model import constrained
 from rcm_kin.model.masses import require_masses
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
-from rcm_kin.model.robot import Robot, RobotData
+from rcm_kin.model.robot import Robot, RobotData, check_robot
 from rcm_kin.symbolic.tree import joint_axis
 
 
 def gravity_torque(robot: Robot, q, method: str = "reduced", data: RobotData | None = None, *,
-                   allow_massless: bool = False) -> np.ndarray:
+                   allow_massless: bool = False, allow_outside_limits: bool = False) -> np.ndarray:
     """Holding torques of the actuated joints at actuated ``q`` (N m, N), actuated order.
 
     ``method``: ``"reduced"`` (mimic model) or ``"constrained"`` (loop solve + projection);
     ``data``: the caller's workspace (:meth:`Robot.create_data`), default this thread's own;
     ``allow_massless``: take links without ``<inertial>`` as massless without a word (else a
-    robot without any masses is refused, one with some missing warned about once).
+    robot without any masses is refused, one with some missing warned about once);
+    ``allow_outside_limits``: evaluate a pose outside the joint limits (refused by default,
+    :meth:`Robot.check_pose`).
     """
+    robot = check_robot(robot)
     if robot.massless_links and not allow_massless:
         require_masses(robot, "gravity")
-    q = robot.check_q(q)
+    q = robot.check_pose(q, allow_outside_limits=allow_outside_limits)
     data = robot.workspace(data)
     if method == "reduced":
         g = pin.computeGeneralizedGravity(robot.reduced, data.reduced, robot.to_reduced(q))

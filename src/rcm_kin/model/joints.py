@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 
 from rcm_kin.model.reduced import tree_configuration
-from rcm_kin.model.robot import JointRow, Robot, RobotData
+from rcm_kin.model.robot import JointRow, Robot, RobotData, check_robot
 
 
 def joint_axes_world(robot: Robot, q: np.ndarray, data: RobotData | None = None) -> dict[str, np.ndarray]:
@@ -25,6 +25,7 @@ def joint_axes_world(robot: Robot, q: np.ndarray, data: RobotData | None = None)
 
 def joint_table(robot: Robot) -> list[JointRow]:
     """Every joint of the open tree, in tree order, passive loop joints included."""
+    robot = check_robot(robot)
     axes = joint_axes_world(robot, np.zeros(robot.nq))
     rows = []
     for jid in range(1, robot.tree.njoints):

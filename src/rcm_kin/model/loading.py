@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, read_bounded
 from rcm_kin.model.constrained import build_constraint_models, closure_residual
 from rcm_kin.model.description import GRAVITY, RobotDescription, read_description, urdf_alone
 from rcm_kin.model.inertials import check_bodies
@@ -78,9 +78,9 @@ def _urdf_without(description: RobotDescription, links: tuple[str, ...], text: s
 
 
 def _read_bytes(path: Path, what: str) -> bytes:
+    """The bytes of ``path`` (a ``what``), bounded (:func:`~rcm_kin.errors.read_bounded`)."""
     try:
-        with open(path, "rb") as fh:
-            return fh.read()
+        return read_bounded(path, what)
     except OSError as exc:
         raise RcmKinError(f"cannot read the {what} {path}: {exc.strerror}") from None
 

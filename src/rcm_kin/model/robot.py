@@ -138,21 +138,22 @@ class Robot:
         """The reduced model's configuration vector -> actuated order."""
         return np.asarray(q_red)[self.reduced_q_actuated]
 
-    def check_q(self, q, *, allow_short: bool = False) -> np.ndarray:
-        """``q`` as a float array of the actuated size, or a clear error. Short vectors are
-        padded with zeros when ``allow_short``."""
+    def check_q(self, q, *, allow_short: bool = False, parameter: str = "q") -> np.ndarray:
+        """``q`` as a float array of the actuated size, or a clear error (an RcmKinError naming
+        ``parameter``). Short vectors are padded with zeros when ``allow_short``."""
         try:
             q = np.atleast_1d(np.asarray(q, dtype=float))
         except (TypeError, ValueError):
             raise RcmKinError(f"joint values must be numbers ({', '.join(self.actuated)}), "
-                              f"got {str(q)[:60]!r}") from None
+                              f"got {str(q)[:60]!r}", parameter=parameter) from None
         if q.ndim != 1 or q.size > self.nq or (q.size < self.nq and not allow_short):
-            raise RcmKinError(f"{self.name} takes {self.nq} joint values ({', '.join(self.actuated)}), got {q.size}")
+            raise RcmKinError(f"{self.name} takes {self.nq} joint values ({', '.join(self.actuated)}), got {q.size}",
+                              parameter=parameter)
         if not np.all(np.isfinite(q)):
-            raise RcmKinError(f"joint values must be finite numbers, got {q.tolist()}")
+            raise RcmKinError(f"joint values must be finite numbers, got {q.tolist()}", parameter=parameter)
         return np.concatenate([q, np.zeros(self.nq - q.size)])
 
-    def check_limits(self, q, tol: float = 1e-9) -> np.ndarray:
+    def check_limits(self, q, tol: float = 1e-9, parameter: str = "q") -> np.ndarray:
         """``q`` (actuated, rad or m) unchanged, or a clear error naming every joint outside its limits
         (a :class:`~rcm_kin.errors.JointLimitError` carrying their names, values and limits).
         The one joint-limit policy of rcm_kin: poses outside the limits are refused, not computed."""
@@ -164,6 +165,24 @@ class Robot:
             bad = np.flatnonzero(outside)
             raise JointLimitError("outside the joint limits: " + "; ".join(
                 f"{self.actuated[i]} {shown(i, q[i])} not in [{shown(i, self.lower[i])}, {shown(i, self.upper[i])}]"
-                for i in bad), joints=tuple(self.actuated[i] for i in bad), values=q[bad].copy(),
-                lower=np.asarray(self.lower)[bad].copy(), upper=np.asarray(self.upper)[bad].copy())
+                for i in bad),
+                joints=tuple(self.actuated[i] for i in bad), values=q[bad].copy(),
+                lower=np.asarray(self.lower)[bad].copy(), upper=np.asarray(self.upper)[bad].copy(), parameter=parameter)
         return q
+
+    def check_pose(self, q, *, allow_outside_limits: bool = False, parameter: str = "q") -> np.ndarray:
+        """The public functions' check of a pose argument (the API's policy): ``q`` as the actuated
+        vector (rad, m), finite and of the right size, and within the joint limits unless
+        ``allow_outside_limits`` (an explicit request to evaluate the model outside them);
+        else an RcmKinError (:class:`~rcm_kin.errors.JointLimitError` for the limits) naming ``parameter``."""
+        q = self.check_q(q, parameter=parameter)
+        return q if allow_outside_limits else self.check_limits(q, parameter=parameter)
+
+
+def check_robot(robot, parameter: str = "robot") -> Robot:
+    """``robot`` itself when it is a :class:`Robot`; else an RcmKinError naming ``parameter`` and
+    saying how to get one (the public functions take the loaded robot, not its name)."""
+    if isinstance(robot, Robot):
+        return robot
+    hint = f"rk.load_robot({robot!r})" if isinstance(robot, str) else "rk.load_robot(name or path)"
+    raise RcmKinError(f"`{parameter}` must be a loaded robot ({hint}), got {type(robot).__name__}", parameter=parameter)

@@ -30,6 +30,7 @@ from pathlib import Path
 
 from rcm_kin.atomic import write_text
 from rcm_kin.errors import RcmKinError, output_folder, recording_warnings, reissue
+from rcm_kin.parallel import process_pool
 
 
 def write_report(out: str | Path, data: str | Path | None = None, map_points: int = 61,
@@ -128,26 +129,18 @@ def _timed(function: Callable, arguments: tuple) -> JobResult:
 
 def run_jobs(jobs: list[Job], workers: int, progress: bool = False) -> dict[str, JobResult]:
     """``jobs`` in a pool of ``workers`` forked processes, taken in their order; label -> result.
-    The first error in a job is raised here, the jobs not started yet cancelled (the running ones
-    finish first)."""
-    from concurrent.futures import ProcessPoolExecutor
-    from multiprocessing import get_context
-
+    The first error in a job is raised here, the other jobs cancelled or stopped (:func:`process_pool`)."""
     from tqdm import tqdm
 
     results = {}
     with tqdm(total=len(jobs), desc="report", unit="part", disable=not progress) as bar:
-        with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("fork")) as pool:
+        with process_pool(workers) as pool:
             futures = {pool.submit(_timed, job.function, job.arguments): job.label for job in jobs}
-            try:
-                for future in as_completed(futures):
-                    results[futures[future]] = future.result()
-                    reissue(results[futures[future]].warnings)   # a forked worker's warnings reach the caller
-                    bar.set_postfix_str(futures[future])
-                    bar.update()
-            except BaseException:
-                pool.shutdown(cancel_futures=True)
-                raise
+            for future in as_completed(futures):
+                results[futures[future]] = future.result()
+                reissue(results[futures[future]].warnings)   # a forked worker's warnings reach the caller
+                bar.set_postfix_str(futures[future])
+                bar.update()
     return results
 
 

@@ -59,7 +59,7 @@ import numpy as np
 from rcm_kin.dynamics.axis_friction import DISCRETE
 from rcm_kin.dynamics.drive import DriveParameters, with_joint
 from rcm_kin.dynamics.stick_slip import TERM_PARAMETERS, TERMS
-from rcm_kin.errors import RcmKinError, warn
+from rcm_kin.errors import RcmKinError, read_text, warn
 from rcm_kin.identification.bands import DECADE
 from rcm_kin.identification.drive_train import terms_of
 from rcm_kin.identification.identify import with_drive_trains
@@ -122,10 +122,10 @@ def read_standard_errors(path: str | Path) -> dict[str, tuple[float, str]]:
     (sigma, "jackknife" | "gauss-newton")}``, the jackknife (leave-one-out) figure where there is a
     finite one."""
     try:
-        raw = json.loads(Path(path).read_text())
+        raw = json.loads(read_text(Path(path), "standard errors file"))
     except OSError as exc:
         raise RcmKinError(f"cannot read the standard errors {path}: {exc.strerror}") from None
-    except json.JSONDecodeError as exc:
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise RcmKinError(f"{path} is not JSON (rcm-kin identify ... --json output): {exc.msg}") from None
     if not isinstance(raw, dict) or "standard_errors" not in raw:
         raise RcmKinError(f"{path} has no \"standard_errors\": give rcm-kin identify ... --json output")

@@ -34,6 +34,7 @@ from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.model.gravity import gravity_batch
 from rcm_kin.model.masses import require_masses
+from rcm_kin.model.robot import check_robot
 from rcm_kin.plotting import effort_heatmaps, insertion_curves, thesis_trend_curves
 from rcm_kin.statics.holding_band import band_columns
 from rcm_kin.symbolic.compiled import compiled, map_points
@@ -131,18 +132,20 @@ class HoldingEffort:
     driven: tuple[str, ...] = ()         # the joints of ``drive`` (empty without a drive)
 
 
-def holding_effort(robot: Robot, q, drive=None, *, params=None) -> HoldingEffort:
+def holding_effort(robot: Robot, q, drive=None, *, params=None, allow_outside_limits: bool = False) -> HoldingEffort:
     """Holding effort of ``robot`` at actuated ``q`` (rad, m): the closed chain's gravity on every
     actuated joint and, with a drive (``drive`` given: DriveParameters or a drive file, checked
     against the robot; else the robot's sidecar drive), its calibrated gravity offsets and the
     motor effort of ``params.driven``. Without one: the URDF inertias, torque only. ``params`` is
-    the keyword's former name, still accepted (give one of the two)."""
+    the keyword's former name, still accepted (give one of the two). ``allow_outside_limits``:
+    evaluate a pose outside the joint limits (refused by default, :meth:`Robot.check_pose`)."""
+    robot = check_robot(robot)
     if params is not None:
         if drive is not None:
             raise RcmKinError("holding_effort takes the drive once: give `drive` (`params` is its former name), "
                               "not both", parameter="drive")
         drive = params
-    q = robot.check_q(q)
+    q = robot.check_pose(q, allow_outside_limits=allow_outside_limits)
     require_masses(robot, "the holding torque")
     drive = resolve_drive(robot, drive)
     if drive is None:

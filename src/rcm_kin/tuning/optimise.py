@@ -21,6 +21,7 @@ from tqdm import tqdm
 
 from rcm_kin.control.gain_schedule import GainSchedule
 from rcm_kin.errors import RcmKinError
+from rcm_kin.parallel import check_workers, quiet_worker
 from rcm_kin.simulation.controllers import TUNED, StateFeedbackController, ThesisController
 from rcm_kin.tuning.design import DesignSpace, bounds_excess, pose_gains, tuned_schedule
 from rcm_kin.tuning.draws import DrawSet
@@ -89,8 +90,7 @@ def minimise(score, dimensions: int, seed: int = 0, budget_s: float = 240.0, pop
     A progress bar (``label``) when ``progress``."""
     if not (np.isfinite(budget_s) and budget_s > 0):
         raise RcmKinError(f"the time budget is a positive number of seconds, got {budget_s}", parameter="budget_s")
-    if not 1 <= workers <= 64:
-        raise RcmKinError(f"workers is 1 to 64, got {workers}", parameter="workers")
+    check_workers(workers)
     if generations is not None and not 1 <= generations <= 100_000:
         raise RcmKinError(f"generations is 1 to 100000, got {generations}", parameter="generations")
     if not 2 <= popsize <= 100 or popsize * dimensions < 5:
@@ -119,7 +119,7 @@ def minimise(score, dimensions: int, seed: int = 0, budget_s: float = 240.0, pop
         return False
 
     _SHARED["score"] = score
-    pool = multiprocessing.get_context("fork").Pool(workers) if workers > 1 else None
+    pool = multiprocessing.get_context("fork").Pool(workers, initializer=quiet_worker) if workers > 1 else None
     mapper = (lambda function, points: pool.map(_shared_score, list(points))) if pool else map
     try:
         result = differential_evolution(_shared_score, [(0.0, 1.0)] * dimensions, init=init, seed=seed,
