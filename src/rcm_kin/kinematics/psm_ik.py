@@ -110,6 +110,24 @@ def shaft_tip_ik(robot: Robot, target) -> np.ndarray:
                       f"it needs {problems[0]}")
 
 
+def clamped_shaft_tip_ik(robot: Robot, target) -> tuple[np.ndarray, bool]:
+    """:func:`shaft_tip_ik` of ``target`` (m, base frame) and ``False``; for a target out of reach,
+    the joints of the tip beyond the RCM on the line to it, each clipped into its limits (as the
+    thesis firmware clamps its angles), and ``True``. Never raises for a finite target."""
+    try:
+        return shaft_tip_ik(robot, target), False
+    except RcmKinError:
+        target = np.asarray(target, dtype=float)
+        if target.shape != (3,) or not np.all(np.isfinite(target)):
+            raise
+    g = rcm_geometry(robot)
+    d = target - g.rcm
+    dist = float(np.linalg.norm(d))
+    q = np.array([*_angles_of_direction(g, d / dist), dist + g.tip_offset])
+    index = [robot.actuated.index(n) for n in ARM]
+    return np.clip(q, robot.lower[index], robot.upper[index]), True
+
+
 def wrist_ik(robot: Robot, q_arm, rotation: np.ndarray) -> np.ndarray:
     """[instrument_roll, wrist_pitch, wrist_yaw] (rad) giving ``tool_tip`` the base-frame
     ``rotation``, with roll, pitch and insertion at ``q_arm``. Closed form.

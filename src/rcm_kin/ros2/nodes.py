@@ -1,0 +1,255 @@
+"""The rclpy plumbing of the nodes: QoS, topics, ROS parameters, the spin loop and a clean stop.
+
+Each node builds its models first (:class:`~rcm_kin.ros2.teleop.TeleopStep`,
+:class:`~rcm_kin.ros2.gravity.GravityStep`), then subscribes; a callback converts the message
+(:mod:`rcm_kin.ros2.messages`), calls the step and publishes, or counts the message as malformed
+(a warning at most every ``warn_period`` s) and publishes nothing. No exception leaves a callback.
+SIGINT and SIGTERM end the spin loop within one ``SPIN_PERIOD``; the node is destroyed and the
+context shut down before the function returns its :class:`~rcm_kin.ros2.messages.Tally` summary.
+
+rclpy is imported when a node starts: the ``ros2`` extra (``pip install 'rcm-kin[ros2]'``).
+Every option is also a ROS parameter of the node (``--ros-args -p depth:=15``), which wins.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from rcm_kin.errors import RcmKinError
+from rcm_kin.hardware import HOME_INSERTION
+from rcm_kin.identification.rosbag import FIELDS, message_columns
+from rcm_kin.identification.telemetry import JOINTS, TelemetryLog, telemetry_log
+from rcm_kin.kinematics.psm_ik import ARM
+from rcm_kin.kinematics.teleop import TeleopMap, default_teleop_map
+from rcm_kin.model import load_robot
+from rcm_kin.ros2.gravity import GravityStep
+from rcm_kin.ros2.messages import MalformedMessage, Tally, joint_values, units_of
+from rcm_kin.ros2.teleop import TeleopStep
+
+EXTRA = "pip install 'rcm-kin[ros2]'"
+SPIN_PERIOD = 0.05          # s: the longest a stop signal waits for the spin loop
+# the robot's topics (firmware convention) and the dVRK's (CRTK), per node role
+TOPICS = {
+    "firmware": {"mtm": "mtm_joint_states", "target": "target_pose", "joints": "psm_joint_targets",
+                 "telemetry": "/psm_joint_telemetry", "effort": "psm_holding_effort"},
+    "crtk": {"mtm": "/MTMR/measured_js", "target": "target_pose", "joints": "/PSM1/servo_jp",
+             "telemetry": "/PSM1/measured_js", "effort": "/PSM1/servo_jf"},
+}
+
+
+@dataclass(frozen=True)
+class NodeOptions:
+    """A node's settings; each is also its ROS parameter of the same name. Topics left empty take
+    the convention's (:data:`TOPICS`). QoS defaults are the robot's: reliable, volatile, depth 20."""
+
+    convention: str = "firmware"     # firmware (deg, mm; PWM counts) or crtk (rad, m)
+    depth: int = 20
+    reliability: str = "reliable"    # reliable or best_effort
+    durability: str = "volatile"     # volatile or transient_local
+    input_topic: str = ""
+    output_topic: str = ""           # teleop: the joint targets; gravity: the holding effort
+    target_topic: str = ""           # teleop: the Cartesian target (firmware target_pose format)
+    warn_period: float = 1.0         # s between two warnings of malformed messages
+    duration: float = 0.0            # s to run, 0: until SIGINT/SIGTERM
+    insertion: float = HOME_INSERTION   # m: gravity's insertion when the message's is not used (firmware)
+    scale: tuple[float, float, float] = (0.05, 0.05, 0.25)   # teleop map scale per PSM base axis
+    drive: str = ""                  # gravity: drive parameter file (default the PSM's)
+    name: str = ""                   # node name (default rcm_kin_<role>)
+
+    def topic(self, given: str, role: str) -> str:
+        return given or TOPICS[self.convention][role]
+
+
+def _ros():
+    """rclpy and the JointState type, or a one-line error naming the extra / the middleware."""
+    try:
+        import rclpy
+        from sensor_msgs.msg import JointState
+    except ModuleNotFoundError as exc:
+        if exc.name and exc.name.split(".")[0] in ("rclpy", "sensor_msgs"):
+            raise RcmKinError(f"the ROS 2 nodes need the ros2 extra: {EXTRA}") from None
+        raise RcmKinError(f"ROS 2 is installed but does not load ({exc}): reinstall with {EXTRA}") from None
+    except ImportError as exc:
+        raise RcmKinError(f"ROS 2 is installed but does not load ({str(exc).splitlines()[0]}): no DDS "
+                          f"transport (the ros-rmw-fastrtps-cpp wheel); reinstall with {EXTRA}") from None
+    return rclpy, JointState
+
+
+def _qos(options: NodeOptions):
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+    if options.reliability not in ("reliable", "best_effort") or options.durability not in ("volatile",
+                                                                                           "transient_local"):
+        raise RcmKinError("QoS: reliability is reliable or best_effort, durability volatile or transient_local",
+                          parameter="reliability")
+    if options.depth < 1:
+        raise RcmKinError(f"QoS depth is at least 1 message, got {options.depth}", parameter="depth")
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=int(options.depth),
+                      reliability=getattr(ReliabilityPolicy, options.reliability.upper()),
+                      durability=getattr(DurabilityPolicy, options.durability.upper()))
+
+
+def _with_parameters(node, options: NodeOptions) -> NodeOptions:
+    """Declare every option as a ROS parameter (the option its default) and read them back."""
+    values = {}
+    for f in fields(NodeOptions):
+        default = getattr(options, f.name)
+        value = node.declare_parameter(f.name, list(default) if isinstance(default, tuple) else default).value
+        values[f.name] = tuple(float(v) for v in value) if isinstance(default, tuple) else value
+    return replace(options, **values)
+
+
+class _Node:
+    """One rclpy context and node, stopped cleanly by SIGINT/SIGTERM or after ``duration``."""
+
+    def __init__(self, role: str, options: NodeOptions, ros_args: list[str] | None = None):
+        self.rclpy, self.JointState = _ros()
+        from rclpy.signals import SignalHandlerOptions
+
+        self.context = self.rclpy.Context()
+        try:
+            self.rclpy.init(args=["rcm_kin", *(ros_args or [])], context=self.context,
+                            signal_handler_options=SignalHandlerOptions.NO)
+            self.node = self.rclpy.create_node(options.name or f"rcm_kin_{role}", context=self.context)
+        except Exception as exc:   # the middleware's own error types: no DDS transport, bad --ros-args
+            self._shutdown()
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            raise RcmKinError(f"ROS 2 could not start a node (no DDS transport?): {first}") from None
+        self.options = _with_parameters(self.node, options)
+        units_of(self.options.convention)
+        self.qos = _qos(self.options)
+        self.tally = Tally()
+        self.log = self.node.get_logger()
+        self.stop = threading.Event()
+
+    def malformed(self, exc: Exception) -> None:
+        self.tally.bad(str(exc))
+        count = sum(self.tally.malformed.values())
+        self.log.warning(f"message {self.tally.received} left out ({count} so far): {exc}",
+                         throttle_duration_sec=self.options.warn_period)
+
+    def guarded(self, work: Callable) -> Callable:
+        """``work(msg)`` counted, timed, and never raising into the executor."""
+        def callback(msg) -> None:
+            start = time.perf_counter()
+            self.tally.received += 1
+            try:
+                if work(msg):
+                    self.tally.published += 1
+                    self.tally.latency(time.perf_counter() - start)
+            except (MalformedMessage, ValueError, TypeError, AttributeError) as exc:
+                self.malformed(exc)
+        return callback
+
+    def spin(self) -> dict:
+        stop = self.stop
+        previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+        from rclpy.executors import SingleThreadedExecutor
+
+        executor = SingleThreadedExecutor(context=self.context)
+        executor.add_node(self.node)
+        end = time.monotonic() + self.options.duration if self.options.duration > 0 else np.inf
+        try:
+            self.log.info("ready")
+            while not stop.is_set() and time.monotonic() < end:
+                executor.spin_once(timeout_sec=SPIN_PERIOD)
+        finally:
+            for s, handler in previous.items():
+                signal.signal(s, handler)
+            executor.shutdown(timeout_sec=1.0)
+            self.node.destroy_node()
+            self._shutdown()
+        return self.tally.summary()
+
+    def _shutdown(self) -> None:
+        if self.context.ok():
+            self.rclpy.shutdown(context=self.context)
+
+    def joint_state(self, stamp, names, position=(), velocity=(), effort=(), frame: str = ""):
+        msg = self.JointState()
+        msg.header.stamp = stamp
+        msg.header.frame_id = frame
+        msg.name = list(names)
+        msg.position, msg.velocity, msg.effort = ([float(x) for x in v] for v in (position, velocity, effort))
+        return msg
+
+
+def run_teleop(options: NodeOptions = NodeOptions(), ros_args: list[str] | None = None,
+               mtm_joints: tuple[str, ...] = ("j1", "j2", "j3")) -> dict:
+    """The teleoperation node: MTM joint states in; the PSM shaft-tip target (``target_pose``:
+    ``x, y, z`` m from the RCM, PSM base axes) and the PSM joint targets (roll, pitch, insertion in
+    the convention's units) out, the input's stamp on both. Runs until stopped; the tally."""
+    ros = _Node("teleop", options, ros_args)
+    opt = ros.options
+    psm = load_robot("psm")
+    home = default_teleop_map(psm).home
+    step = TeleopStep(load_robot("mtm"), psm, TeleopMap(home=home, scale=np.array(opt.scale)), mtm_joints)
+    units = units_of(opt.convention)
+    to_mtm = units.factors(["revolute"] * len(mtm_joints))
+    to_psm = 1.0 / units.factors([psm.joint_kind(j) for j in ARM])
+    targets = ros.node.create_publisher(ros.JointState, opt.topic(opt.target_topic, "target"), ros.qos)
+    joints = ros.node.create_publisher(ros.JointState, opt.topic(opt.output_topic, "joints"), ros.qos)
+
+    def work(msg) -> bool:
+        out = step(joint_values(msg.name, msg.position, step.mtm_joints) * to_mtm)
+        ros.tally.clamped += out.clamped
+        targets.publish(ros.joint_state(msg.header.stamp, ("x", "y", "z"), out.reached - step.rcm, frame="psm_rcm"))
+        joints.publish(ros.joint_state(msg.header.stamp, ARM, out.joints * to_psm, frame="psm_base"))
+        return True
+
+    ros.node.create_subscription(ros.JointState, opt.topic(opt.input_topic, "mtm"), ros.guarded(work), ros.qos)
+    return ros.spin()
+
+
+def run_gravity(options: NodeOptions = NodeOptions(), ros_args: list[str] | None = None) -> dict:
+    """The gravity-feedforward node: PSM telemetry in; the holding effort out as a JointState of
+    roll, pitch, insertion: ``position`` the pose used (rad, rad, m), ``effort`` the holding torque
+    (N m, N m, N), ``velocity`` the holding PWM (counts, hardware sign; the telemetry's PWM field),
+    ``header.frame_id`` the drive file's name; the input's stamp. The firmware convention reads
+    roll and pitch (deg) and holds the insertion at ``insertion`` (m); CRTK reads all three (SI)."""
+    ros = _Node("gravity", options, ros_args)
+    opt = ros.options
+    step = GravityStep(load_robot("psm"), opt.drive or None)
+    crtk = opt.convention == "crtk"
+    wanted = ARM if crtk else ARM[:2]
+    to_si = units_of(opt.convention).factors(["revolute"] * 2 + ["prismatic"] * crtk)
+    publisher = ros.node.create_publisher(ros.JointState, opt.topic(opt.output_topic, "effort"), ros.qos)
+
+    def work(msg) -> bool:
+        q = joint_values(msg.name, msg.position, wanted) * to_si
+        out = step(q if crtk else np.r_[q, opt.insertion])
+        publisher.publish(ros.joint_state(msg.header.stamp, ARM, out.q, out.pwm, out.tau, frame=step.source))
+        return True
+
+    ros.node.create_subscription(ros.JointState, opt.topic(opt.input_topic, "telemetry"), ros.guarded(work), ros.qos)
+    return ros.spin()
+
+
+def run_record(options: NodeOptions = NodeOptions(), ros_args: list[str] | None = None,
+               messages: int = 0) -> tuple[TelemetryLog, dict]:
+    """A live telemetry topic read into a :class:`TelemetryLog` (the CSV and bag readers' type, the
+    same checks) until ``messages`` are in (0: no limit), ``duration`` s pass or a stop signal."""
+    ros = _Node("record", options, ros_args)
+    opt = ros.options
+    topic = opt.topic(opt.input_topic, "telemetry")
+    rows, stamps, received = [], [], []
+
+    def work(msg) -> bool:
+        rows.append({(name, f): float(values[i]) for f in FIELDS if len(values := getattr(msg, f)) == len(msg.name)
+                     for i, name in enumerate(msg.name) if name in JOINTS})
+        stamps.append(f"{msg.header.stamp.sec}.{msg.header.stamp.nanosec:09d}")
+        received.append(time.time_ns())
+        if messages and len(rows) >= messages:
+            ros.stop.set()
+        return False
+
+    ros.node.create_subscription(ros.JointState, topic, ros.guarded(work), ros.qos)
+    summary = ros.spin()
+    t, data = message_columns(f"live:{topic}", rows, stamps, received)
+    return telemetry_log(f"live:{topic}", t, data), summary
