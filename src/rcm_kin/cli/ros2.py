@@ -64,7 +64,7 @@ def add_ros2(sub) -> None:
     s.add_argument("--insertion", type=finite(0, 0.16, "m"), default=HOME_INSERTION,
                    help=f"firmware convention: the insertion in m (default {HOME_INSERTION:g}; the telemetry's "
                         "insertion field is not read); crtk reads it from the message")
-    s.add_argument("--params", type=path_text, default="", help="drive parameter TOML (default the PSM's)")
+    s.add_argument("--params", type=path_text, default=None, help="drive parameter TOML (default the PSM's)")
     s.set_defaults(func=cmd_gravity)
     s = ros2.add_parser("record-check", help="a live telemetry topic read into a telemetry log (CSV for sysid, "
                                              "predict)", epilog=EPILOG, formatter_class=RAW)
@@ -108,7 +108,7 @@ def cmd_teleop(args) -> None:
 def cmd_gravity(args) -> None:
     from rcm_kin.ros2.nodes import run_gravity
 
-    options = _options(args, output_topic=args.output_topic, insertion=args.insertion, drive=args.params)
+    options = _options(args, output_topic=args.output_topic, insertion=args.insertion, drive=args.params or "")
     _report(args, run_gravity(options, _ros_args(args)), "gravity")
 
 

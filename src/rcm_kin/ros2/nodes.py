@@ -13,6 +13,8 @@ Every option is also a ROS parameter of the node (``--ros-args -p depth:=15``), 
 
 from __future__ import annotations
 
+import importlib.util
+import os
 import signal
 import threading
 import time
@@ -66,8 +68,26 @@ class NodeOptions:
         return given or TOPICS[self.convention][role]
 
 
+def _check_rmw() -> None:
+    """The middleware ``RMW_IMPLEMENTATION`` asks for is installed, else a one-line error (rcl would
+    end the process with status 102 when it loads). Checked where the middlewares are Python-visible
+    folders (the ROS 2 wheels); a ROS distribution's own install is left to rcl."""
+    requested = os.environ.get("RMW_IMPLEMENTATION", "")
+    if requested and _findable("rmw_fastrtps_cpp") and not _findable(requested):
+        raise RcmKinError(f"no DDS transport: RMW_IMPLEMENTATION={requested} is not installed (the ros2 extra "
+                          f"brings rmw_fastrtps_cpp: {EXTRA})", parameter="RMW_IMPLEMENTATION")
+
+
+def _findable(name: str) -> bool:
+    try:
+        return importlib.util.find_spec(name) is not None
+    except (ImportError, ValueError):
+        return False
+
+
 def _ros():
     """rclpy and the JointState type, or a one-line error naming the extra / the middleware."""
+    _check_rmw()
     try:
         import rclpy
         from sensor_msgs.msg import JointState
