@@ -24,7 +24,8 @@ def telemetry(graph, n: int = 60):
 
 
 def offline_gravity(capsys, roll: float, pitch: float, insertion: float) -> dict:
-    assert main(["gravity", "psm", repr(float(roll)), repr(float(pitch)), repr(float(insertion)), "--deg", "--json"]) == 0
+    pose = [repr(float(x)) for x in (roll, pitch, insertion)]
+    assert main(["gravity", "psm", *pose, "--deg", "--json"]) == 0
     return json.loads(capsys.readouterr().out)
 
 
