@@ -49,6 +49,11 @@ class RcmGeometry:
     tip_offset: float           # m
     sign: float                 # pitch_axis x shaft_axis = sign * roll_axis
 
+    @functools.cached_property
+    def side(self) -> np.ndarray:
+        """roll_axis x shaft_axis, found once (np.cross costs more than the rest of an IK call)."""
+        return np.cross(self.roll_axis, self.shaft_axis)
+
 
 @functools.lru_cache(maxsize=None)
 def rcm_geometry(robot: Robot) -> RcmGeometry:
@@ -72,14 +77,13 @@ def rcm_geometry(robot: Robot) -> RcmGeometry:
 
 def shaft_direction(g: RcmGeometry, roll: float, pitch: float) -> np.ndarray:
     """Unit shaft direction (RCM -> tool) in the base frame."""
-    side = np.cross(g.roll_axis, g.shaft_axis)
+    side = g.side
     return (g.sign * np.sin(pitch) * g.roll_axis
             + np.cos(pitch) * (np.cos(roll) * g.shaft_axis + np.sin(roll) * side))
 
 
 def _angles_of_direction(g: RcmGeometry, u: np.ndarray) -> tuple[float, float]:
-    side = np.cross(g.roll_axis, g.shaft_axis)
-    a, b = float(u @ g.shaft_axis), float(u @ side)
+    a, b = float(u @ g.shaft_axis), float(u @ g.side)
     return float(np.arctan2(b, a)), float(np.arctan2(g.sign * (u @ g.roll_axis), np.hypot(a, b)))
 
 

@@ -29,7 +29,7 @@ WRIST = "wrist_center"
 class TeleopOutput:
     displacement: np.ndarray   # m, MTM wrist centre from its zero pose (MTM base)
     target: np.ndarray         # m, PSM shaft-tip target (PSM base), as the map gives it
-    reached: np.ndarray        # m, PSM shaft tip at ``joints`` (= target unless clamped)
+    reached: np.ndarray        # m, ``target``, or where the clipped ``joints`` put the shaft tip when clamped
     joints: np.ndarray         # roll rad, pitch rad, insertion m: within the joint limits
     clamped: bool              # the target was out of reach and the joints were clipped
 
@@ -75,7 +75,9 @@ class TeleopStep:
             self.offset = self._last - mapped        # held: the target stays, the offset follows the MTM
         target = mapped + self.offset
         joints, clamped = clamped_shaft_tip_ik(self.psm, target)
-        self._q_psm[self._arm] = joints
-        reached = frame_placement(self.psm, self._q_psm, "shaft_tip", self._psm_data).translation.copy()
-        self._last = target if not clamped else reached
+        reached = target
+        if clamped:                                  # where the clipped joints put the tip
+            self._q_psm[self._arm] = joints
+            reached = frame_placement(self.psm, self._q_psm, "shaft_tip", self._psm_data).translation.copy()
+        self._last = reached
         return TeleopOutput(d, target, reached, joints, clamped)
