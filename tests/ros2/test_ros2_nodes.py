@@ -103,3 +103,24 @@ def test_the_test_profile_keeps_traffic_on_loopback(ros_env):
     assert [a.text for a in root.findall(".//d:interfaceWhiteList/d:address", ns)] == ["127.0.0.1"]
     assert root.findtext(".//d:useBuiltinTransports", namespaces=ns) == "false"
     assert os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST"
+
+
+def test_view_draws_both_robots_from_their_topics(graph, node_process):
+    node = node_process("view", "--json", "--depth", "2000", "--rate", "20")
+    mtm, psm = graph.publisher("mtm_joint_states"), graph.publisher("/psm_joint_telemetry")
+    graph.wait_matched([mtm, psm], [])
+    assert graph.spin_until(lambda: "ready" in node.output()[1], 60.0), node.output()
+    graph.spin_until(lambda: False, 1.0)                      # discovery in both directions
+    messages = 0
+    for k in range(20):
+        mtm.publish(graph.message(["j1", "j2", "j3", "g0"], [k, -k, 2 * k, 10], k=k))
+        psm.publish(graph.message(["roll", "pitch", "insertion"], [k, -k, 333.4], k=k))
+        messages += 2                                             # a burst: far faster than 20 redraws a second
+    psm.publish(graph.message(["a", "b"], [1, 2], k=99))        # not the PSM's joints
+    graph.spin_until(lambda: False, 0.5)
+    status, seconds = node.stop()
+    assert status == 0 and seconds < 2.0, node.output()
+    tally = json.loads(node.output()[0])
+    assert tally["received"] == messages + 1 and tally["malformed"] == 1
+    assert 1 <= tally["published"] <= 10                            # redrawn at most 20 times a second, not per message
+    assert "http://" in node.output()[1]                              # the meshcat URL, on stderr

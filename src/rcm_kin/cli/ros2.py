@@ -1,4 +1,4 @@
-"""``ros2 teleop``, ``ros2 gravity``, ``ros2 record-check``: rcm-kin as ROS 2 nodes (rclpy imported
+"""``ros2 teleop``, ``ros2 gravity``, ``ros2 record-check``, ``ros2 view``: rcm-kin as ROS 2 nodes (rclpy imported
 when a node starts; the ``ros2`` extra)."""
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ EXTRA = "pip install 'rcm-kin[ros2]'"
 EPILOG = ("examples: rcm-kin ros2 teleop                      (mtm_joint_states -> target_pose, psm_joint_targets)\n"
           "          rcm-kin ros2 gravity --insertion 0.1     (/psm_joint_telemetry -> psm_holding_effort)\n"
           "          rcm-kin ros2 record-check --messages 2000 --out capture.csv; rcm-kin sysid capture.csv\n"
+          "          rcm-kin ros2 view                        (meshcat: open the URL it prints)\n"
           "          rcm-kin ros2 teleop --convention crtk    (a dVRK arm: /MTMR/measured_js -> /PSM1/servo_jp, SI)\n"
           "          rcm-kin ros2 gravity --ros-args -p depth:=15   (every option is also a ROS parameter)\n"
           "units at the message boundary: firmware convention deg and mm (the PSM's PWM in counts), crtk rad and m;\n"
@@ -73,6 +74,16 @@ def add_ros2(sub) -> None:
                    help="stop after this many messages (default 0: --duration or Ctrl-C)")
     s.add_argument("--out", type=path_text, help="write the log as a telemetry CSV here (deg, PWM counts, deg)")
     s.set_defaults(func=cmd_record)
+    s = ros2.add_parser("view", help="live meshcat view of the MTM and the PSM driven by their joint-state topics",
+                        epilog=EPILOG, formatter_class=RAW)
+    _common(s)
+    s.add_argument("--psm-topic", default="", help="PSM joint states (default /psm_joint_telemetry: roll, pitch "
+                                                   "deg; crtk /PSM1/measured_js: rad, m); --input-topic: the MTM's")
+    s.add_argument("--rate", type=finite(0.1, 120, "Hz"), default=30.0,
+                   help="redraws per second at most (default 30)")
+    s.add_argument("--insertion", type=finite(0, 0.16, "m"), default=HOME_INSERTION,
+                   help=f"firmware convention: the PSM's insertion in m (default {HOME_INSERTION:g})")
+    s.set_defaults(func=cmd_view)
 
 
 def _options(args, **extra):
@@ -110,6 +121,26 @@ def cmd_gravity(args) -> None:
 
     options = _options(args, output_topic=args.output_topic, insertion=args.insertion, drive=args.params or "")
     _report(args, run_gravity(options, _ros_args(args)), "gravity")
+
+
+def cmd_view(args) -> None:
+    import contextlib
+    import sys
+
+    import meshcat
+
+    from rcm_kin.ros2.view import run_view
+
+    with contextlib.redirect_stdout(sys.stderr):     # its URL on stderr: stdout is the tally (--json)
+        live = meshcat.Visualizer()                  # starts the meshcat server
+    try:
+        summary = run_view(live.window, _options(args, insertion=args.insertion), _ros_args(args), args.psm_topic,
+                           args.rate)
+    finally:
+        if live.window.server_proc is not None:
+            live.window.server_proc.kill()
+            live.window.server_proc.wait()
+    _report(args, summary, "view (answered = redraws)")
 
 
 def cmd_record(args) -> None:

@@ -3,13 +3,15 @@
 - :mod:`.messages`: ``JointState`` fields <-> SI arrays (the firmware's and the CRTK conventions),
   malformed messages, the per-node tally of messages and latencies;
 - :mod:`.teleop`, :mod:`.gravity`: one message's work as arrays, the models built once (no rclpy);
+- :mod:`.view`: the live meshcat view of both robots;
 - :mod:`.nodes`: the rclpy plumbing (QoS, topics, parameters, clean stop on SIGINT/SIGTERM);
   rclpy is imported when a node starts (the ``ros2`` extra: ``pip install 'rcm-kin[ros2]'``).
 """
 
 import lazy_loader
 
-__all__ = ["GravityStep", "MalformedMessage", "NodeOptions", "TeleopStep", "run_gravity", "run_record", "run_teleop"]
+__all__ = ["GravityStep", "MalformedMessage", "NodeOptions", "TeleopStep", "run_gravity", "run_record", "run_teleop",
+           "run_view"]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,
@@ -18,5 +20,6 @@ __getattr__, __dir__, _ = lazy_loader.attach(
         "teleop": ["TeleopStep"],
         "gravity": ["GravityStep"],
         "nodes": ["NodeOptions", "run_teleop", "run_gravity", "run_record"],
+        "view": ["run_view"],
     },
 )

@@ -125,7 +125,7 @@ def _with_parameters(node, options: NodeOptions) -> NodeOptions:
     return replace(options, **values)
 
 
-class _Node:
+class RosNode:
     """One rclpy context and node, stopped cleanly by SIGINT/SIGTERM or after ``duration``."""
 
     def __init__(self, role: str, options: NodeOptions, ros_args: list[str] | None = None):
@@ -205,7 +205,7 @@ def run_teleop(options: NodeOptions = NodeOptions(), ros_args: list[str] | None 
     """The teleoperation node: MTM joint states in; the PSM shaft-tip target (``target_pose``:
     ``x, y, z`` m from the RCM, PSM base axes) and the PSM joint targets (roll, pitch, insertion in
     the convention's units) out, the input's stamp on both. Runs until stopped; the tally."""
-    ros = _Node("teleop", options, ros_args)
+    ros = RosNode("teleop", options, ros_args)
     opt = ros.options
     psm = load_robot("psm")
     home = default_teleop_map(psm).home
@@ -233,7 +233,7 @@ def run_gravity(options: NodeOptions = NodeOptions(), ros_args: list[str] | None
     (N m, N m, N), ``velocity`` the holding PWM (counts, hardware sign; the telemetry's PWM field),
     ``header.frame_id`` the drive file's name; the input's stamp. The firmware convention reads
     roll and pitch (deg) and holds the insertion at ``insertion`` (m); CRTK reads all three (SI)."""
-    ros = _Node("gravity", options, ros_args)
+    ros = RosNode("gravity", options, ros_args)
     opt = ros.options
     step = GravityStep(load_robot("psm"), opt.drive or None)
     crtk = opt.convention == "crtk"
@@ -255,7 +255,7 @@ def run_record(options: NodeOptions = NodeOptions(), ros_args: list[str] | None 
                messages: int = 0) -> tuple[TelemetryLog, dict]:
     """A live telemetry topic read into a :class:`TelemetryLog` (the CSV and bag readers' type, the
     same checks) until ``messages`` are in (0: no limit), ``duration`` s pass or a stop signal."""
-    ros = _Node("record", options, ros_args)
+    ros = RosNode("record", options, ros_args)
     opt = ros.options
     topic = opt.topic(opt.input_topic, "telemetry")
     rows, stamps, received = [], [], []
