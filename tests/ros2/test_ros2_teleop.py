@@ -97,3 +97,20 @@ def test_teleop_clamps_an_unreachable_target_into_the_limits(graph, node_process
     assert len(reachable) == len(degrees) - tally["clamped"]
     for k, q in reachable:
         np.testing.assert_allclose(got[k], q, atol=1e-9)
+
+
+def test_teleop_crtk_speaks_si_on_the_dvrk_topics(graph, node_process, recording):
+    degrees, displacement = recording
+    psm = load_robot("psm")
+    picked = slice(0, None, 20)
+    expected = teleop_joint_targets(psm, default_teleop_map(psm), displacement[picked])
+    node = node_process("teleop", "--json", *DEEP, "--convention", "crtk")
+    mtm = graph.publisher("/MTMR/measured_js")
+    joints = graph.collect("/PSM1/servo_jp")
+    graph.wait_matched([mtm], ["/PSM1/servo_jp"])
+    graph.handshake(mtm, graph.message(MTM_NAMES, np.zeros(7), probe=True), joints)
+    messages = [graph.message(MTM_NAMES, np.radians(row), k=k) for k, row in enumerate(degrees[picked])]
+    graph.play(mtm, messages, rate=100.0)
+    assert graph.spin_until(lambda: len(played(messages, joints)) >= len(messages), 10.0)
+    assert node.stop()[0] == 0
+    np.testing.assert_allclose(as_array(played(messages, joints)), expected, rtol=0, atol=1e-9)   # rad, rad, m
