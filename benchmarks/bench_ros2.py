@@ -59,22 +59,28 @@ def robot_qos(depth: int = 20):
 
 
 def echo() -> None:
-    """The bare echo node: ``bench_in`` republished on ``bench_out``, until SIGTERM."""
+    """The bare echo node: ``bench_in`` republished on ``bench_out``, until SIGTERM; the nodes'
+    executor (:func:`rcm_kin.ros2.nodes.make_executor`), no work."""
     import signal
 
     import rclpy
     from rclpy.signals import SignalHandlerOptions
     from sensor_msgs.msg import JointState
 
+    from rcm_kin.ros2.nodes import make_executor
+
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("bench_echo")
+    executor = make_executor(rclpy.get_default_context())
+    executor.add_node(node)
     out = node.create_publisher(JointState, "bench_out", robot_qos())
     node.create_subscription(JointState, "bench_in", out.publish, robot_qos())
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
     print("ready", file=sys.stderr, flush=True)
     while not stop:
-        rclpy.spin_once(node, timeout_sec=0.05)
+        executor.spin_once(timeout_sec=0.05)
+    executor.shutdown()
     node.destroy_node()
     rclpy.shutdown()
 
@@ -168,7 +174,7 @@ def main() -> None:
              "ros2 gravity": ([*cli, "gravity", "--json"], *PSM)}
     bench = Bench()
     print(f"loopback, QoS reliable/volatile/depth 20, {args.seconds:g} s of messages per run; latency = answer "
-          "arrival - input publication")
+          f"arrival - input publication; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     print(f"{'node':24} {'rate':>7} {'sent':>6} {'lost':>7} {'median':>9} {'p99':>9} {'x echo':>7} "
           f"{'work median':>12} {'work p99':>9}")
     for rate in RATES:
@@ -179,6 +185,7 @@ def main() -> None:
             work = (f"{r['work_median'] * 1e6:9.0f} us {r['work_p99'] * 1e6:6.0f} us" if r["work_median"] else "")
             print(f"{name:24} {rate:5.0f}Hz {r['sent']:6d} {r['lost'] * 100:6.2f}% {r['median'] * 1e3:6.3f} ms "
                   f"{r['p99'] * 1e3:6.3f} ms {r['median'] / base:6.2f}x {work}", flush=True)
+    print(f"load average at the end {os.getloadavg()[0]:.1f}")
     bench.node.destroy_node()
     bench.rclpy.shutdown()
 
