@@ -144,18 +144,22 @@ class RosNode:
         self.rclpy, self.JointState = _ros()
         from rclpy.signals import SignalHandlerOptions
 
-        self.context = self.rclpy.Context()
+        self.context, self.node = self.rclpy.Context(), None
         try:
             self.rclpy.init(args=["rcm_kin", *(ros_args or [])], context=self.context,
                             signal_handler_options=SignalHandlerOptions.NO)
             self.node = self.rclpy.create_node(options.name or f"rcm_kin_{role}", context=self.context)
         except Exception as exc:   # the middleware's own error types: no DDS transport, bad --ros-args
-            self._shutdown()
+            self.close()
             first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
             raise RcmKinError(f"ROS 2 could not start a node (no DDS transport?): {first}") from None
-        self.options = _with_parameters(self.node, options)
-        units_of(self.options.convention)
-        self.qos = _qos(self.options)
+        try:
+            self.options = _with_parameters(self.node, options)
+            units_of(self.options.convention)
+            self.qos = _qos(self.options)
+        except Exception:
+            self.close()
+            raise
         self.tally = Tally()
         self.log = self.node.get_logger()
         self.stop = threading.Event()
@@ -177,7 +181,22 @@ class RosNode:
                     self.tally.latency(time.perf_counter() - start)
             except (MalformedMessage, ValueError, TypeError, AttributeError) as exc:
                 self.malformed(exc)
+            except Exception as exc:     # no exception reaches the executor: the node goes on
+                self.malformed(RuntimeError(f"not answered: {type(exc).__name__}: {exc}"))
         return callback
+
+    def __enter__(self) -> RosNode:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Destroy the node and shut its context down (once; also after an error before spinning)."""
+        if getattr(self, "node", None) is not None:
+            self.node.destroy_node()
+            self.node = None
+        self._shutdown()
 
     def spin(self) -> dict:
         stop = self.stop
@@ -193,8 +212,7 @@ class RosNode:
             for s, handler in previous.items():
                 signal.signal(s, handler)
             executor.shutdown(timeout_sec=1.0)
-            self.node.destroy_node()
-            self._shutdown()
+            self.close()
         return self.tally.summary()
 
     def _shutdown(self) -> None:
@@ -215,7 +233,11 @@ def run_teleop(options: NodeOptions = NodeOptions(), ros_args: list[str] | None 
     """The teleoperation node: MTM joint states in; the PSM shaft-tip target (``target_pose``:
     ``x, y, z`` m from the RCM, PSM base axes) and the PSM joint targets (roll, pitch, insertion in
     the convention's units) out, the input's stamp on both. Runs until stopped; the tally."""
-    ros = RosNode("teleop", options, ros_args)
+    with RosNode("teleop", options, ros_args) as ros:
+        return _teleop(ros, mtm_joints)
+
+
+def _teleop(ros: RosNode, mtm_joints):
     opt = ros.options
     psm = load_robot("psm")
     home = default_teleop_map(psm).home
@@ -243,7 +265,11 @@ def run_gravity(options: NodeOptions = NodeOptions(), ros_args: list[str] | None
     (N m, N m, N), ``velocity`` the holding PWM (counts, hardware sign; the telemetry's PWM field),
     ``header.frame_id`` the drive file's name; the input's stamp. The firmware convention reads
     roll and pitch (deg) and holds the insertion at ``insertion`` (m); CRTK reads all three (SI)."""
-    ros = RosNode("gravity", options, ros_args)
+    with RosNode("gravity", options, ros_args) as ros:
+        return _gravity(ros)
+
+
+def _gravity(ros: RosNode):
     opt = ros.options
     step = GravityStep(load_robot("psm"), opt.drive or None)
     crtk = opt.convention == "crtk"
@@ -265,7 +291,11 @@ def run_record(options: NodeOptions = NodeOptions(), ros_args: list[str] | None 
                messages: int = 0) -> tuple[TelemetryLog, dict]:
     """A live telemetry topic read into a :class:`TelemetryLog` (the CSV and bag readers' type, the
     same checks) until ``messages`` are in (0: no limit), ``duration`` s pass or a stop signal."""
-    ros = RosNode("record", options, ros_args)
+    with RosNode("record", options, ros_args) as ros:
+        return _record(ros, messages)
+
+
+def _record(ros: RosNode, messages: int):
     opt = ros.options
     topic = opt.topic(opt.input_topic, "telemetry")
     rows, stamps, received = [], [], []

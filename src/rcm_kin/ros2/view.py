@@ -61,7 +61,11 @@ def run_view(window, options: NodeOptions = NodeOptions(), ros_args: list[str] |
     ``input_topic`` (default the convention's MTM joint states) and the PSM by ``psm_topic`` (default
     its telemetry or ``measured_js``), redrawn at most ``rate`` Hz. Runs until stopped; the tally
     (``published``: redraws)."""
-    ros = RosNode("view", options, ros_args)
+    with RosNode("view", options, ros_args) as ros:
+        return _view(ros, window, psm_topic, rate, spacing)
+
+
+def _view(ros: RosNode, window, psm_topic: str, rate: float, spacing: float) -> dict:
     opt = ros.options
     mtm = _Robot("mtm", window, opt.convention, -spacing / 2)
     psm = _Robot("psm", window, opt.convention, spacing / 2)
