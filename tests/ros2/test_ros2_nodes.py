@@ -124,3 +124,10 @@ def test_view_draws_both_robots_from_their_topics(graph, node_process):
     assert tally["received"] == messages + 1 and tally["malformed"] == 1
     assert 1 <= tally["published"] <= 10                            # redrawn at most 20 times a second, not per message
     assert "http://" in node.output()[1]                              # the meshcat URL, on stderr
+
+
+def test_a_ros_parameter_wins_over_the_option(ros_env):
+    run = subprocess.run([sys.executable, "-m", "rcm_kin.cli", "ros2", "gravity", "--depth", "5", "--duration", "1",
+                          "--ros-args", "-p", "depth:=0"], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2 and run.stderr.strip().splitlines()[-1] == \
+        "error: QoS depth is at least 1 message, got 0"

@@ -69,3 +69,14 @@ def test_gravity_step_is_the_holding_effort(psm):
         np.testing.assert_allclose(out.tau, effort.tau[:3], rtol=0, atol=1e-9)
     with pytest.raises(MalformedMessage, match="outside the joint limits"):
         step(np.array([0.0, np.radians(-35.07), 0.08]))      # the pitch resting on its stop
+
+
+@pytest.mark.parametrize("command", ["teleop", "gravity", "record-check", "view"])
+def test_every_node_has_help_with_units_and_an_example(command, capsys):
+    from rcm_kin.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["ros2", command, "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert stop.value.code == 0
+    assert "example" in text and "deg" in text and f"rcm-kin ros2 {command}" in text

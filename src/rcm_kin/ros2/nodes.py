@@ -152,6 +152,9 @@ class RosNode:
         except Exception as exc:   # the middleware's own error types: no DDS transport, bad --ros-args
             self.close()
             first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            if "ROSArgs" in type(exc).__name__:
+                raise RcmKinError(f"ROS did not take the arguments after --ros-args: {first} (--ros-args comes "
+                                  "last; ROS reads -p NAME:=VALUE and -r FROM:=TO)", parameter="ros_args") from None
             raise RcmKinError(f"ROS 2 could not start a node (no DDS transport?): {first}") from None
         try:
             self.options = _with_parameters(self.node, options)
