@@ -222,13 +222,22 @@ class RosNode:
         if self.context.ok():
             self.rclpy.shutdown(context=self.context)
 
-    def joint_state(self, stamp, names, position=(), velocity=(), effort=(), frame: str = ""):
+    def answer(self, names, frame: str) -> Callable:
+        """``fill(stamp, position, velocity=None, effort=None)``: one JointState of joints ``names``
+        in ``frame``, built once and refilled per answer (publishing serialises it at once)."""
         msg = self.JointState()
-        msg.header.stamp = stamp
         msg.header.frame_id = frame
         msg.name = list(names)
-        msg.position, msg.velocity, msg.effort = ([float(x) for x in v] for v in (position, velocity, effort))
-        return msg
+
+        def fill(stamp, position, velocity=None, effort=None):
+            msg.header.stamp = stamp
+            msg.position = np.asarray(position, dtype=float).tolist()
+            if velocity is not None:
+                msg.velocity = np.asarray(velocity, dtype=float).tolist()
+            if effort is not None:
+                msg.effort = np.asarray(effort, dtype=float).tolist()
+            return msg
+        return fill
 
 
 def run_teleop(options: NodeOptions = NodeOptions(), ros_args: list[str] | None = None,
@@ -251,11 +260,13 @@ def _teleop(ros: RosNode, mtm_joints):
     targets = ros.node.create_publisher(ros.JointState, opt.topic(opt.target_topic, "target"), ros.qos)
     joints = ros.node.create_publisher(ros.JointState, opt.topic(opt.output_topic, "joints"), ros.qos)
 
+    target_msg, joints_msg = ros.answer(("x", "y", "z"), "psm_rcm"), ros.answer(ARM, "psm_base")
+
     def work(msg) -> bool:
         out = step(joint_values(msg.name, msg.position, step.mtm_joints) * to_mtm)
         ros.tally.clamped += out.clamped
-        targets.publish(ros.joint_state(msg.header.stamp, ("x", "y", "z"), out.reached - step.rcm, frame="psm_rcm"))
-        joints.publish(ros.joint_state(msg.header.stamp, ARM, out.joints * to_psm, frame="psm_base"))
+        targets.publish(target_msg(msg.header.stamp, out.reached - step.rcm))
+        joints.publish(joints_msg(msg.header.stamp, out.joints * to_psm))
         return True
 
     ros.node.create_subscription(ros.JointState, opt.topic(opt.input_topic, "mtm"), ros.guarded(work), ros.qos)
@@ -279,11 +290,12 @@ def _gravity(ros: RosNode):
     wanted = ARM if crtk else ARM[:2]
     to_si = units_of(opt.convention).factors(["revolute"] * 2 + ["prismatic"] * crtk)
     publisher = ros.node.create_publisher(ros.JointState, opt.topic(opt.output_topic, "effort"), ros.qos)
+    answer = ros.answer(ARM, step.source)
 
     def work(msg) -> bool:
         q = joint_values(msg.name, msg.position, wanted) * to_si
         out = step(q if crtk else np.r_[q, opt.insertion])
-        publisher.publish(ros.joint_state(msg.header.stamp, ARM, out.q, out.pwm, out.tau, frame=step.source))
+        publisher.publish(answer(msg.header.stamp, out.q, out.pwm, out.tau))
         return True
 
     ros.node.create_subscription(ros.JointState, opt.topic(opt.input_topic, "telemetry"), ros.guarded(work), ros.qos)
