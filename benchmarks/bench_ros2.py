@@ -1,6 +1,6 @@
 """Per-message latency and loss of ``rcm-kin ros2 teleop`` and ``ros2 gravity`` beside a bare echo
-node, same run, on a loopback-only graph (a FastDDS profile written here: one UDPv4 transport on
-127.0.0.1, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, a random domain).
+node, same run, on a loopback-only graph (:func:`rcm_kin.ros2.nodes.loopback_environment`: a FastDDS profile with one
+UDPv4 transport on 127.0.0.1, ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, a random domain).
 
 Each node is a process started as on the robot, with the robot's QoS (reliable, volatile, depth
 20). This process publishes ``JointState`` messages at 400 Hz and at 1000 Hz (``--seconds`` of
@@ -31,23 +31,12 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from rcm_kin.ros2.nodes import loopback_environment  # noqa: E402
+
 RATES = (400.0, 1000.0)
-PROFILE = """<?xml version="1.0" encoding="UTF-8"?>
-<dds xmlns="http://www.eprosima.com"><profiles>
-  <transport_descriptors><transport_descriptor>
-    <transport_id>loopback_udp</transport_id><type>UDPv4</type>
-    <interfaceWhiteList><address>127.0.0.1</address></interfaceWhiteList>
-  </transport_descriptor></transport_descriptors>
-  <participant profile_name="bench_loopback" is_default_profile="true"><rtps>
-    <userTransports><transport_id>loopback_udp</transport_id></userTransports>
-    <useBuiltinTransports>false</useBuiltinTransports>
-  </rtps></participant>
-</profiles></dds>
-"""
 MTM = (["j1", "j2", "j3"], "mtm_joint_states", "psm_joint_targets")
 PSM = (["roll", "pitch", "insertion"], "/psm_joint_telemetry", "psm_holding_effort")
 
@@ -163,11 +152,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.echo:
         return echo()
-    folder = Path(tempfile.mkdtemp(prefix="bench_ros2_"))
-    (folder / "profile.xml").write_text(PROFILE)
-    os.environ.update(FASTDDS_DEFAULT_PROFILES_FILE=str(folder / "profile.xml"),
-                      ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", RMW_IMPLEMENTATION="rmw_fastrtps_cpp",
-                      ROS_DOMAIN_ID=str(random.SystemRandom().randint(101, 200)), ROS_LOG_DIR=str(folder / "log"))
+    os.environ.update(loopback_environment(tempfile.mkdtemp(prefix="bench_ros2_"),
+                                           random.SystemRandom().randint(101, 200)))
     cli = [sys.executable, "-m", "rcm_kin.cli", "ros2"]
     nodes = {"echo (rclpy, no work)": ([sys.executable, __file__, "--echo"], PSM[0], "bench_in", "bench_out"),
              "ros2 teleop": ([*cli, "teleop", "--json"], *MTM),

@@ -1,7 +1,8 @@
 """The ROS 2 tests' graph: loopback only, a domain of their own, real node processes.
 
-The session writes a FastDDS profile (one UDPv4 transport allowed on 127.0.0.1 alone, the builtin
-transports off) and points ``FASTDDS_DEFAULT_PROFILES_FILE`` at it, with
+The session writes a FastDDS profile (:data:`rcm_kin.ros2.nodes.LOOPBACK_PROFILE`: one UDPv4
+transport allowed on 127.0.0.1 alone, the builtin transports off; its content is checked in
+test_ros2_nodes.py) and points ``FASTDDS_DEFAULT_PROFILES_FILE`` at it, with
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a random ``ROS_DOMAIN_ID``: no test traffic leaves
 127.0.0.1 and two sessions on one machine do not hear each other. The node processes are
 ``python -m rcm_kin.cli ros2 ...`` subprocesses, so signals reach them as they would on the robot.
@@ -21,33 +22,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-PROFILE = """<?xml version="1.0" encoding="UTF-8"?>
-<dds xmlns="http://www.eprosima.com">
-  <profiles>
-    <transport_descriptors>
-      <transport_descriptor>
-        <transport_id>loopback_udp</transport_id>
-        <type>UDPv4</type>
-        <interfaceWhiteList><address>127.0.0.1</address></interfaceWhiteList>
-      </transport_descriptor>
-    </transport_descriptors>
-    <participant profile_name="rcm_kin_tests_loopback" is_default_profile="true">
-      <rtps>
-        <userTransports><transport_id>loopback_udp</transport_id></userTransports>
-        <useBuiltinTransports>false</useBuiltinTransports>
-      </rtps>
-    </participant>
-  </profiles>
-</dds>
-"""
 START_TIMEOUT = 60.0     # s: a node process up and matched (imports, models, a first C compile, discovery)
 STOP_TIMEOUT = 2.0       # s: SIGTERM to exit, the issue's bound
-
-
-def write_profile(folder: Path) -> Path:
-    path = folder / "fastdds_loopback.xml"
-    path.write_text(PROFILE)
-    return path
 
 
 @pytest.fixture(scope="session")
@@ -56,12 +32,9 @@ def ros_env(tmp_path_factory, compiled_cache):
     the node processes it starts."""
     pytest.importorskip("rclpy", reason="the ros2 extra is not installed (pip install 'rcm-kin[ros2]')")
     pytest.importorskip("sensor_msgs.msg", reason="the ros2 extra is not installed (pip install 'rcm-kin[ros2]')")
-    folder = tmp_path_factory.mktemp("ros2")
-    env = {"FASTDDS_DEFAULT_PROFILES_FILE": str(write_profile(folder)),
-           "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-           "ROS_DOMAIN_ID": str(random.SystemRandom().randint(1, 100)),
-           "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
-           "ROS_LOG_DIR": str(folder / "log")}
+    from rcm_kin.ros2.nodes import loopback_environment
+
+    env = loopback_environment(tmp_path_factory.mktemp("ros2"), random.SystemRandom().randint(1, 100))
     os.environ.pop("FASTRTPS_DEFAULT_PROFILES_FILE", None)
     os.environ.update(env)
     return env

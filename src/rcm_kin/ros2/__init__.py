@@ -10,8 +10,8 @@
 
 import lazy_loader
 
-__all__ = ["GravityStep", "MalformedMessage", "NodeOptions", "TeleopStep", "run_gravity", "run_record", "run_teleop",
-           "run_view"]
+__all__ = ["GravityStep", "MalformedMessage", "NodeOptions", "TeleopStep", "loopback_environment", "run_gravity",
+           "run_record", "run_teleop", "run_view"]
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,
@@ -19,7 +19,7 @@ __getattr__, __dir__, _ = lazy_loader.attach(
         "messages": ["MalformedMessage"],
         "teleop": ["TeleopStep"],
         "gravity": ["GravityStep"],
-        "nodes": ["NodeOptions", "run_teleop", "run_gravity", "run_record"],
+        "nodes": ["NodeOptions", "run_teleop", "run_gravity", "run_record", "loopback_environment"],
         "view": ["run_view"],
     },
 )

@@ -20,9 +20,11 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
+from pathlib import Path
 
 import numpy as np
 
+from rcm_kin.atomic import write_text
 from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.identification.rosbag import FIELDS, message_columns
@@ -43,6 +45,40 @@ TOPICS = {
     "crtk": {"mtm": "/MTMR/measured_js", "target": "target_pose", "joints": "/PSM1/servo_jp",
              "telemetry": "/PSM1/measured_js", "effort": "/PSM1/servo_jf"},
 }
+
+
+# a FastDDS profile keeping every participant of the processes that name it on 127.0.0.1: one UDPv4
+# transport allowed on the loopback interface alone, the builtin transports (UDP on every interface,
+# shared memory) off; with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST discovery stays on the host too
+LOOPBACK_PROFILE = """<?xml version="1.0" encoding="UTF-8"?>
+<dds xmlns="http://www.eprosima.com">
+  <profiles>
+    <transport_descriptors>
+      <transport_descriptor>
+        <transport_id>loopback_udp</transport_id>
+        <type>UDPv4</type>
+        <interfaceWhiteList><address>127.0.0.1</address></interfaceWhiteList>
+      </transport_descriptor>
+    </transport_descriptors>
+    <participant profile_name="rcm_kin_loopback" is_default_profile="true">
+      <rtps>
+        <userTransports><transport_id>loopback_udp</transport_id></userTransports>
+        <useBuiltinTransports>false</useBuiltinTransports>
+      </rtps>
+    </participant>
+  </profiles>
+</dds>
+"""
+
+
+def loopback_environment(folder: str | Path, domain: int) -> dict[str, str]:
+    """Write :data:`LOOPBACK_PROFILE` into ``folder``; the environment variables that make a process's
+    ROS 2 traffic stay on 127.0.0.1 in ``domain`` (FastDDS, logs in ``folder``)."""
+    folder = Path(folder)
+    profile = write_text(folder / "fastdds_loopback.xml", LOOPBACK_PROFILE)
+    return {"FASTDDS_DEFAULT_PROFILES_FILE": str(profile), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+            "ROS_DOMAIN_ID": str(int(domain)), "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
+            "ROS_LOG_DIR": str(folder / "log")}
 
 
 @dataclass(frozen=True)
