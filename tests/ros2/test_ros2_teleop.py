@@ -114,3 +114,44 @@ def test_teleop_crtk_speaks_si_on_the_dvrk_topics(graph, node_process, recording
     assert graph.spin_until(lambda: len(played(messages, joints)) >= len(messages), 10.0)
     assert node.stop()[0] == 0
     np.testing.assert_allclose(as_array(played(messages, joints)), expected, rtol=0, atol=1e-9)   # rad, rad, m
+
+
+def test_teleop_clutch_holds_the_target_and_takes_up_from_there(graph, node_process):
+    from std_msgs.msg import Bool
+
+    psm = load_robot("psm")
+    teleop = default_teleop_map(psm)
+    mtm_robot = load_robot("mtm")
+    zero = frame_placement(mtm_robot, np.zeros(mtm_robot.nq), "wrist_center").translation
+    node = node_process("teleop", "--json", *DEEP, "--clutch-topic", "mtm_clutch")
+    mtm = graph.publisher("mtm_joint_states")
+    clutch = graph.node.create_publisher(Bool, "mtm_clutch", graph.qos)
+    targets = graph.collect("target_pose")
+    graph.wait_matched([mtm, clutch], ["target_pose"])
+    graph.handshake(mtm, graph.message(MTM_NAMES, np.zeros(7), probe=True), targets)
+    poses = np.array([[0, 0, 0], [10, 5, -5], [20, 10, -10], [25, 12, -8]], dtype=float)   # deg
+
+    def send(k: int) -> list:
+        message = graph.message(MTM_NAMES, np.r_[poses[k], np.zeros(4)], k=k)
+        mtm.publish(message)
+        assert graph.spin_until(lambda: len(played([message], targets)) == 1, 10.0)
+        return np.array(played([message], targets)[0].position)
+
+    def pressed(state: bool) -> None:           # a state, sent a few times: a first one may precede discovery
+        for _ in range(6):
+            clutch.publish(Bool(data=state))
+            graph.spin_until(lambda: False, 0.05)
+        graph.spin_until(lambda: False, 0.2)
+
+    first = send(1)
+    pressed(True)
+    held = send(2)
+    pressed(False)
+    moved = send(3)
+    assert node.stop()[0] == 0
+    displacement = [frame_placement(mtm_robot, np.r_[np.radians(p), np.zeros(4)], "wrist_center").translation - zero
+                    for p in poses]
+    rcm = frame_placement(psm, np.zeros(psm.nq), "rcm").translation
+    np.testing.assert_allclose(first, psm_targets(teleop, displacement[1]) - rcm, atol=1e-9)
+    np.testing.assert_allclose(held, first, atol=1e-12)                       # the PSM held while pressed
+    np.testing.assert_allclose(moved - held, (displacement[3] - displacement[2]) * teleop.scale, atol=1e-9)

@@ -54,6 +54,8 @@ def add_ros2(sub) -> None:
                                                       "insertion mm; crtk /PSM1/servo_jp: rad, m)")
     s.add_argument("--scale", nargs=3, type=finite(-10, 10), default=[0.05, 0.05, 0.25], metavar=("SX", "SY", "SZ"),
                    help="teleoperation scale per PSM base axis (default 0.05 0.05 0.25, the firmware's)")
+    s.add_argument("--clutch-topic", default="", help="std_msgs/Bool topic, true while the clutch is pressed: the "
+                                                      "PSM target holds while the MTM moves (default: no clutch)")
     s.add_argument("--mtm-joints", nargs=3, default=["j1", "j2", "j3"], metavar="NAME",
                    help="names of the MTM joints that place its wrist centre, as in the messages (default j1 j2 j3)")
     s.set_defaults(func=cmd_teleop)
@@ -112,7 +114,8 @@ def _report(args, summary: dict, what: str) -> None:
 def cmd_teleop(args) -> None:
     from rcm_kin.ros2.nodes import run_teleop
 
-    options = _options(args, target_topic=args.target_topic, output_topic=args.output_topic, scale=tuple(args.scale))
+    options = _options(args, target_topic=args.target_topic, output_topic=args.output_topic, scale=tuple(args.scale),
+                       clutch_topic=args.clutch_topic)
     _report(args, run_teleop(options, _ros_args(args), tuple(args.mtm_joints)), "teleop")
 
 

@@ -98,6 +98,7 @@ class NodeOptions:
     insertion: float = HOME_INSERTION   # m: gravity's insertion when the message's is not used (firmware)
     scale: tuple[float, float, float] = (0.05, 0.05, 0.25)   # teleop map scale per PSM base axis
     drive: str = ""                  # gravity: drive parameter file (default the PSM's)
+    clutch_topic: str = ""           # teleop: std_msgs/Bool, true while the clutch is pressed ("": no clutch)
     name: str = ""                   # node name (default rcm_kin_<role>)
 
     def topic(self, given: str, role: str) -> str:
@@ -280,7 +281,9 @@ def run_teleop(options: NodeOptions = NodeOptions(), ros_args: list[str] | None 
                mtm_joints: tuple[str, ...] = ("j1", "j2", "j3")) -> dict:
     """The teleoperation node: MTM joint states in; the PSM shaft-tip target (``target_pose``:
     ``x, y, z`` m from the RCM, PSM base axes) and the PSM joint targets (roll, pitch, insertion in
-    the convention's units) out, the input's stamp on both. Runs until stopped; the tally."""
+    the convention's units) out, the input's stamp on both. With ``clutch_topic``, a ``std_msgs/Bool``
+    true holds the PSM target while the MTM moves (:meth:`TeleopStep.clutch`). Runs until stopped;
+    the tally."""
     with RosNode("teleop", options, ros_args) as ros:
         return _teleop(ros, mtm_joints)
 
@@ -306,6 +309,10 @@ def _teleop(ros: RosNode, mtm_joints):
         return True
 
     ros.node.create_subscription(ros.JointState, opt.topic(opt.input_topic, "mtm"), ros.guarded(work), ros.qos)
+    if opt.clutch_topic:
+        from std_msgs.msg import Bool
+
+        ros.node.create_subscription(Bool, opt.clutch_topic, lambda msg: step.clutch(bool(msg.data)), ros.qos)
     return ros.spin()
 
 
