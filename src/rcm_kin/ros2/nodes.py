@@ -349,6 +349,9 @@ def run_record(options: NodeOptions = NodeOptions(), ros_args: list[str] | None 
                messages: int = 0) -> tuple[TelemetryLog, dict]:
     """A live telemetry topic read into a :class:`TelemetryLog` (the CSV and bag readers' type, the
     same checks) until ``messages`` are in (0: no limit), ``duration`` s pass or a stop signal."""
+    if options.convention != "firmware":
+        raise RcmKinError("record-check reads the firmware's telemetry (deg, the PWM in `velocity`); the CRTK "
+                          "convention's measured_js carries no PWM: use --convention firmware", parameter="convention")
     with RosNode("record", options, ros_args) as ros:
         return _record(ros, messages)
 
