@@ -73,7 +73,7 @@ def add_ros2(sub) -> None:
                                              "predict)", epilog=EPILOG, formatter_class=RAW)
     _common(s)
     s.add_argument("--messages", type=count(0, 2_000_000, "messages"), default=0,
-                   help="stop after this many messages (default 0: --duration or Ctrl-C)")
+                   help="stop after this many messages (default 0: --duration, Ctrl-C or 2,000,000, a log's bound)")
     s.add_argument("--out", type=path_text, help="write the log as a telemetry CSV here (deg, PWM counts, deg)")
     s.set_defaults(func=cmd_record)
     s = ros2.add_parser("view", help="live meshcat view of the MTM and the PSM driven by their joint-state topics",

@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from rcm_kin.atomic import write_text
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, warn
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.identification.rosbag import FIELDS, message_columns
-from rcm_kin.identification.telemetry import JOINTS, TelemetryLog, telemetry_log
+from rcm_kin.identification.telemetry import JOINTS, MAX_LOG_ROWS, TelemetryLog, telemetry_log
 from rcm_kin.kinematics.psm_ik import ARM
 from rcm_kin.kinematics.teleop import TeleopMap, default_teleop_map
 from rcm_kin.model import load_robot
@@ -348,7 +348,8 @@ def _gravity(ros: RosNode):
 def run_record(options: NodeOptions = NodeOptions(), ros_args: list[str] | None = None,
                messages: int = 0) -> tuple[TelemetryLog, dict]:
     """A live telemetry topic read into a :class:`TelemetryLog` (the CSV and bag readers' type, the
-    same checks) until ``messages`` are in (0: no limit), ``duration`` s pass or a stop signal."""
+    same checks) until ``messages`` are in (0: the bound of one log, ``MAX_LOG_ROWS``), ``duration``
+    s pass or a stop signal."""
     if options.convention != "firmware":
         raise RcmKinError("record-check reads the firmware's telemetry (deg, the PWM in `velocity`); the CRTK "
                           "convention's measured_js carries no PWM: use --convention firmware", parameter="convention")
@@ -360,17 +361,20 @@ def _record(ros: RosNode, messages: int):
     opt = ros.options
     topic = opt.topic(opt.input_topic, "telemetry")
     rows, stamps, received = [], [], []
+    limit = min(messages or MAX_LOG_ROWS, MAX_LOG_ROWS)     # a log's bound (the CSV reader's) holds here too
 
     def work(msg) -> bool:
         rows.append({(name, f): float(values[i]) for f in FIELDS if len(values := getattr(msg, f)) == len(msg.name)
                      for i, name in enumerate(msg.name) if name in JOINTS})
         stamps.append(f"{msg.header.stamp.sec}.{msg.header.stamp.nanosec:09d}")
         received.append(time.time_ns())
-        if messages and len(rows) >= messages:
+        if len(rows) >= limit:
             ros.stop.set()
         return False
 
     ros.node.create_subscription(ros.JointState, topic, ros.guarded(work), ros.qos)
     summary = ros.spin()
+    if len(rows) >= MAX_LOG_ROWS and messages != MAX_LOG_ROWS:
+        warn(f"live:{topic}: the capture stopped at {MAX_LOG_ROWS:,} messages, the bound of one log")
     t, data = message_columns(f"live:{topic}", rows, stamps, received)
     return telemetry_log(f"live:{topic}", t, data), summary
