@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
-from conftest import as_array, played
+from ros2_graph import as_array, played
 
 from rcm_kin.cli import main
 

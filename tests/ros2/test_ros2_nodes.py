@@ -11,7 +11,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
-from conftest import as_array, played
+from ros2_graph import as_array, played
 
 from rcm_kin.identification.telemetry import load_telemetry
 

@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import as_array, played, stamp_key
+from ros2_graph import as_array, played, stamp_key
 
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.kinematics.ik import inverse_kinematics
