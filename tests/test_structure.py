@@ -28,7 +28,7 @@ LAYERS = [
     ("plotting", "statics"),
     ("control",),
     ("codegen", "simulation", "identification", "export", "visualization"),
-    ("robustness", "safety", "tuning"),
+    ("robustness", "safety", "tuning", "ros2"),
     ("report",),
     ("cli",),
 ]

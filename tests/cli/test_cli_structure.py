@@ -42,7 +42,7 @@ def test_cli_function_size(path):
 # libraries only some commands need (each costs 0.05-0.3 s to import): the CLI's start-up, which
 # every command pays, must not load them (it took 0.56 s with SciPy and python-control, now 0.24 s)
 HEAVY = ("scipy", "control", "matplotlib", "numba", "cvxpy", "daqp", "clarabel", "meshcat", "dask", "jinja2",
-         "mujoco", "rosbags", "yourdfpy")
+         "mujoco", "rosbags", "yourdfpy", "rclpy")
 
 
 def test_cli_start_up_leaves_the_heavy_libraries_for_the_commands():
@@ -55,7 +55,8 @@ def test_cli_has_every_command():
     commands = rcm_kin.cli.build_parser()._subparsers._group_actions[0].choices
     assert list(commands) == ["info", "fk", "ik", "gravity", "torque-map", "counterweights", "calibrate", "dynamics",
                               "linearize", "schedule", "simulate", "robustness", "sweep", "sysid", "greybox",
-                              "identify", "predict", "excite", "view", "safety", "report", "export"]
+                              "identify", "predict", "excite", "view", "safety", "report", "export",
+                              "ros2"]
 
 
 # --- inverse kinematics: every solution put through forward kinematics lands on its target ---

@@ -172,3 +172,23 @@ def test_teleop_map(psm):
                                    psm_targets(teleop, d[k]), atol=1e-12)
     with pytest.raises(RcmKinError, match="MTM sample 0"):
         teleop_joint_targets(psm, teleop, [[5.0, 0, 0]])
+
+
+def test_clamped_shaft_tip_ik_is_the_ik_within_reach_and_clips_beyond_it(psm):
+    import pinocchio as pin
+
+    from rcm_kin.kinematics.psm_ik import ARM, clamped_shaft_tip_ik, shaft_tip_ik
+
+    index = [psm.actuated.index(j) for j in ARM]
+    inside = frame_placement(psm, psm.check_q([0.2, -0.3, 0.1], allow_short=True), "shaft_tip").translation
+    q, clamped = clamped_shaft_tip_ik(psm, inside)
+    np.testing.assert_array_equal(q, shaft_tip_ik(psm, inside))
+    assert not clamped
+    # 60 deg of roll is beyond its 30 deg limit: the roll clips to it, pitch and insertion are the line's
+    beyond = frame_placement(psm, psm.check_q([0.0, 0.0, 0.1], allow_short=True), "shaft_tip").translation
+    rcm = frame_placement(psm, np.zeros(psm.nq), "rcm").translation
+    turned = rcm + pin.utils.rotate("x", np.radians(60)) @ (beyond - rcm)     # about the roll axis (x)
+    q, clamped = clamped_shaft_tip_ik(psm, turned)
+    assert clamped
+    assert np.all(q >= psm.lower[index]) and np.all(q <= psm.upper[index])
+    assert abs(abs(q[0]) - np.radians(30)) < 1e-12 and abs(q[1]) < 1e-9 and abs(q[2] - 0.1) < 1e-9

@@ -25,6 +25,7 @@ from rcm_kin.cli import (
     kinematics,
     prediction,
     robustness,
+    ros2,
     safety,
     schedule,
     simulation,
@@ -45,7 +46,7 @@ COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
             simulation.add_simulate, robustness.add_robustness, robustness.add_sweep,
             identification.add_sysid, identification.add_greybox,
             drive_train.add_identify, prediction.add_predict, drive_train.add_excite,
-            views.add_view, safety.add_safety, views.add_report, export.add_export)
+            views.add_view, safety.add_safety, views.add_report, export.add_export, ros2.add_ros2)
 # the commands that read telemetry logs: CSV, or ROS 2 bags whose JointState topic --topic names
 LOG_COMMANDS = ("calibrate", "sysid", "greybox", "identify", "predict", "report")
 LOG_BOUNDS = (f"logs: a CSV of at most {MAX_LOG_ROWS:,} rows and {MAX_LOG_BYTES // 2**20} MiB; time stamps in order\n"

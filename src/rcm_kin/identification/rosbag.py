@@ -101,10 +101,13 @@ def read_joint_states(path: str | Path, topic: str | None = None,
             raise
         first_line = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise RcmKinError(f"{path}: not a readable rosbag2 bag ({first_line})") from None
-    return _columns(path, rows, stamps, received)
+    return message_columns(path, rows, stamps, received)
 
 
-def _columns(path: Path, rows: list[dict], stamps: list[str], received: list[int]):
+def message_columns(path: Path, rows: list[dict], stamps: list[str], received: list[int]):
+    """Time (s, from the first message) and the columns of JointState messages read as ``rows``
+    ({(joint, field): value}), ``stamps`` (``header.stamp`` as decimal text, s) and ``received``
+    (arrival, ns): the checks of a bag's messages, whatever brought them (a bag, a live topic)."""
     if len(rows) < 2:
         raise RcmKinError(f"{path}: not a telemetry log (fewer than 2 messages on the topic)")
     keys = sorted(set().union(*rows))

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rcm_kin.atomic import atomic_path
 from rcm_kin.errors import LogDataError, LogDataWarning, RcmKinError, WorkLimitError, warn
 from rcm_kin.identification.rosbag import BAG_SUFFIXES, is_bag, read_joint_states
 
@@ -168,12 +169,38 @@ def load_bag(path: str | Path, topic: str | None = None) -> TelemetryLog:
     """A :class:`TelemetryLog` from a ROS 2 bag (:func:`rcm_kin.identification.rosbag.read_joint_states`
     of ``topic``, default the current :func:`~rcm_kin.identification.rosbag.telemetry_topic`)."""
     t, data = read_joint_states(path, topic, max_messages=MAX_LOG_ROWS)
+    return telemetry_log(path, t, data)
+
+
+def telemetry_log(path: str | Path, t: np.ndarray, data: dict) -> TelemetryLog:
+    """The :class:`TelemetryLog` of JointState columns ``data`` ({(joint, field): values}) at times
+    ``t`` (s): a bag's (:func:`load_bag`) or a live topic's; its time stamps checked (:func:`check_time`)."""
     check_time(path, t, "header/stamp", noun="complete message")
     pick = lambda field: {j: data[(j, field)] for j in JOINTS if (j, field) in data}  # noqa: E731
     position, pwm = pick("position"), pick("velocity")
     if not position or not pwm:
         raise RcmKinError(f"{path}: not a telemetry log (no position and velocity of {', '.join(JOINTS)})")
     return TelemetryLog(Path(path), t, position, pwm, pick("effort"))
+
+
+def write_telemetry(log: TelemetryLog, path: str | Path) -> Path:
+    """``log`` as a telemetry CSV at ``path`` (the PlotJuggler export's columns: ``__time`` s, and
+    ``/psm_joint_telemetry/<joint>/position`` deg, ``.../velocity`` PWM counts, ``.../effort`` deg per
+    joint of the log), which :func:`load_telemetry` reads back to the same numbers."""
+    path = Path(path)
+    header, columns = ["__time"], [log.time]
+    for joint in JOINTS:
+        for field, table in (("position", log.position), ("velocity", log.pwm), ("effort", log.setpoint)):
+            if joint in table:
+                header.append(f"/psm_joint_telemetry/{joint}/{field}")
+                columns.append(table[joint])
+    try:
+        with atomic_path(path) as temporary:
+            np.savetxt(temporary, np.column_stack(columns), delimiter=",", header=",".join(header), comments="",
+                       fmt="%.17g")
+    except OSError as exc:
+        raise RcmKinError(f"cannot write {path}: {exc.strerror}") from None
+    return path
 
 
 def telemetry_files(folder: str | Path, pattern: str = "*") -> list[Path]:

@@ -49,6 +49,11 @@ class RcmGeometry:
     tip_offset: float           # m
     sign: float                 # pitch_axis x shaft_axis = sign * roll_axis
 
+    @functools.cached_property
+    def side(self) -> np.ndarray:
+        """roll_axis x shaft_axis, found once (np.cross costs more than the rest of an IK call)."""
+        return np.cross(self.roll_axis, self.shaft_axis)
+
 
 @functools.lru_cache(maxsize=None)
 def rcm_geometry(robot: Robot) -> RcmGeometry:
@@ -72,14 +77,13 @@ def rcm_geometry(robot: Robot) -> RcmGeometry:
 
 def shaft_direction(g: RcmGeometry, roll: float, pitch: float) -> np.ndarray:
     """Unit shaft direction (RCM -> tool) in the base frame."""
-    side = np.cross(g.roll_axis, g.shaft_axis)
+    side = g.side
     return (g.sign * np.sin(pitch) * g.roll_axis
             + np.cos(pitch) * (np.cos(roll) * g.shaft_axis + np.sin(roll) * side))
 
 
 def _angles_of_direction(g: RcmGeometry, u: np.ndarray) -> tuple[float, float]:
-    side = np.cross(g.roll_axis, g.shaft_axis)
-    a, b = float(u @ g.shaft_axis), float(u @ side)
+    a, b = float(u @ g.shaft_axis), float(u @ g.side)
     return float(np.arctan2(b, a)), float(np.arctan2(g.sign * (u @ g.roll_axis), np.hypot(a, b)))
 
 
@@ -108,6 +112,24 @@ def shaft_tip_ik(robot: Robot, target) -> np.ndarray:
         problems.append(", ".join(broken))
     raise RcmKinError(f"shaft tip target ({', '.join(f'{x:.4f}' for x in target)}) m is out of reach: "
                       f"it needs {problems[0]}")
+
+
+def clamped_shaft_tip_ik(robot: Robot, target) -> tuple[np.ndarray, bool]:
+    """:func:`shaft_tip_ik` of ``target`` (m, base frame) and ``False``; for a target out of reach,
+    the joints of the tip beyond the RCM on the line to it, each clipped into its limits (as the
+    thesis firmware clamps its angles), and ``True``. Never raises for a finite target."""
+    try:
+        return shaft_tip_ik(robot, target), False
+    except RcmKinError:
+        target = np.asarray(target, dtype=float)
+        if target.shape != (3,) or not np.all(np.isfinite(target)):
+            raise
+    g = rcm_geometry(robot)
+    d = target - g.rcm
+    dist = float(np.linalg.norm(d))
+    q = np.array([*_angles_of_direction(g, d / dist), dist + g.tip_offset])
+    index = [robot.actuated.index(n) for n in ARM]
+    return np.clip(q, robot.lower[index], robot.upper[index]), True
 
 
 def wrist_ik(robot: Robot, q_arm, rotation: np.ndarray) -> np.ndarray:
