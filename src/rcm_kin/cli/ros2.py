@@ -6,7 +6,9 @@ from __future__ import annotations
 import argparse
 
 from rcm_kin.cli.common import RAW, Parser, add_json, count, emit, finite, path_text
+from rcm_kin.cli.outputs import add_force, new_output
 from rcm_kin.hardware import HOME_INSERTION
+from rcm_kin.identification.telemetry import MAX_LOG_ROWS
 
 EXTRA = "pip install 'rcm-kin[ros2]'"
 EPILOG = ("examples: rcm-kin ros2 teleop                      (mtm_joint_states -> target_pose, psm_joint_targets)\n"
@@ -72,9 +74,12 @@ def add_ros2(sub) -> None:
     s = ros2.add_parser("record-check", help="a live telemetry topic read into a telemetry log (CSV for sysid, "
                                              "predict)", epilog=EPILOG, formatter_class=RAW)
     _common(s)
-    s.add_argument("--messages", type=count(0, 2_000_000, "messages"), default=0,
-                   help="stop after this many messages (default 0: --duration, Ctrl-C or 2,000,000, a log's bound)")
-    s.add_argument("--out", type=path_text, help="write the log as a telemetry CSV here (deg, PWM counts, deg)")
+    s.add_argument("--messages", type=count(0, MAX_LOG_ROWS, "messages"), default=0,
+                   help=f"stop after this many messages (default 0: --duration, Ctrl-C or {MAX_LOG_ROWS:,}, a log's "
+                        "bound)")
+    s.add_argument("--out", type=path_text, help="write the log as a telemetry CSV here (deg, PWM counts, deg; a new "
+                                                 ".csv file unless --force)")
+    add_force(s)
     s.set_defaults(func=cmd_record)
     s = ros2.add_parser("view", help="live meshcat view of the MTM and the PSM driven by their joint-state topics",
                         epilog=EPILOG, formatter_class=RAW)
@@ -150,12 +155,13 @@ def cmd_record(args) -> None:
     from rcm_kin.identification.telemetry import write_telemetry
     from rcm_kin.ros2.nodes import run_record
 
+    out = new_output(args.out, args.force, (".csv",)) if args.out else None      # refused before listening
     log, summary = run_record(_options(args), _ros_args(args), args.messages)
     steps = log.time[1:] - log.time[:-1]
     summary.update(samples=len(log.time), seconds=float(log.time[-1]), joints=sorted(log.position),
                    rate_hz=float(1 / steps.mean()), widest_step_s=float(steps.max()))
-    if args.out:
-        summary["file"] = str(write_telemetry(log, args.out))
+    if out is not None:
+        summary["file"] = str(write_telemetry(log, out))
     text = (f"{summary['samples']} samples over {summary['seconds']:.3f} s ({summary['rate_hz']:.1f} Hz, widest step "
             f"{summary['widest_step_s'] * 1e3:.2f} ms) of {', '.join(summary['joints'])}"
             + (f"; written to {summary['file']}" if args.out else ""))
