@@ -117,3 +117,16 @@ def test_the_folder_keeps_the_most_recently_used(designed, monkeypatch):
     for part in "abc":
         cached_schedule(schedule_key(part), lambda: designed)
     assert len(list(schedule_folder().glob("*.npz"))) == len(list(schedule_folder().glob("*.sha256"))) == 2
+
+
+def test_a_file_that_matches_its_checksum_but_does_not_read_is_designed_anew(designed):
+    """A file whose checksum file was written for its (bad) bytes: read, refused, designed anew."""
+    import hashlib
+
+    key = schedule_key("test", "unreadable")
+    cached_schedule(key, lambda: designed)
+    path = next(schedule_folder().glob("*.npz"))
+    path.write_bytes(b"not a zip archive")
+    path.with_name(path.name + ".sha256").write_text(f"{hashlib.sha256(b'not a zip archive').hexdigest()} {key}\n")
+    with pytest.warns(RcmKinWarning, match="does not read"):
+        assert_identical(cached_schedule(key, lambda: designed), designed)

@@ -18,6 +18,7 @@ import functools
 import hashlib
 import io
 import os
+import zipfile
 from collections.abc import Callable
 from dataclasses import astuple, fields
 from importlib.metadata import PackageNotFoundError, version
@@ -83,7 +84,7 @@ def cached_schedule(key: str, design: Callable[[], GainSchedule]) -> GainSchedul
                 schedule = _read(path)
                 os.utime(path)
                 return schedule
-            except (OSError, ValueError, KeyError) as exc:
+            except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
                 reason = f"does not read ({exc})"
         warn(f"the cached gain schedule {path} {reason}: deleted and designed anew")
         path.unlink(missing_ok=True)
