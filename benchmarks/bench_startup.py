@@ -14,6 +14,10 @@ In process: ``run_experiment`` of the same simulation, warm (second call), per c
 against the compiled kernel alone (``simulate_compiled`` on the already built plant and law;
 target within 2x).
 
+``--robustness``: ``rcm-kin robustness psm --controller p --controller scheduled --experiment sine``
+with 8 and 32 samples from fresh processes; a sample's cost is the difference over 24, against the
+in-process simulation of the same controllers and experiment (target: at most 3x).
+
 ``--against SRC`` runs the commands a second time with ``PYTHONPATH=SRC`` (another checkout's
 ``src``, e.g. ``git archive main src | tar -x -C /tmp/main``): before and after in one run. The
 caches (compiled functions, numba, gain schedules) are warm: run each command once first, as the
@@ -101,15 +105,39 @@ def in_process() -> None:
           f"{whole / ticks * 1e6:.2f} us, the kernel alone {kernel / ticks * 1e6:.2f} us = {whole / kernel:.2f}x")
 
 
+ROBUSTNESS = ["-m", "rcm_kin.cli", "robustness", "psm", "--controller", "p", "--controller", "scheduled",
+              "--experiment", "sine", "--json", "--samples"]
+
+
+def robustness(repeats: int, against: str | None) -> None:
+    sys.path.insert(0, SRC)
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.simulation.experiments import run_experiment
+
+    params = load_drive_parameters()
+    for name in ("p", "scheduled"):
+        run_experiment("sine", name, None, params)
+    simulation = best_of(lambda: [run_experiment("sine", name, None, params) for name in ("p", "scheduled")], 3)
+    for label, src in ({"this": SRC} | ({"against": against} if against else {})).items():
+        runs = {n: min(fresh(ROBUSTNESS + [str(n)], src) for _ in range(repeats)) for n in (8, 32)}
+        sample = (runs[32] - runs[8]) / 24
+        print(f"robustness ({label}): 8 samples {runs[8]:.2f} s, 32 samples {runs[32]:.2f} s: a sample "
+              f"{sample:.3f} s = {sample / simulation:.1f}x the in-process simulation of both controllers "
+              f"({simulation:.3f} s)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--against", help="another checkout's src folder, run in the same rounds")
     parser.add_argument("--skip-fresh", action="store_true")
+    parser.add_argument("--robustness", action="store_true", help="also the robustness samples (about a minute)")
     args = parser.parse_args()
     if not args.skip_fresh:
         fresh_processes(args.repeats, args.against)
     in_process()
+    if args.robustness:
+        robustness(max(1, args.repeats // 2), args.against)
 
 
 if __name__ == "__main__":
