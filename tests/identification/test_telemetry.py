@@ -152,7 +152,8 @@ def test_every_shared_log_reads_as_the_csv_module_reads_it(shared_data):
             assert period == PERIOD and u.size == int(np.ceil(log.time[-1] / PERIOD)), path.name
 
 
-PLAIN = "__time,/t/roll/position,/t/roll/velocity\n0.0,0.1,-3\n0.0025,0.1000000000000000055511151231257827,4e-3\n0.005,-0.2,5\n"
+PLAIN = ("__time,/t/roll/position,/t/roll/velocity\n0.0,0.1,-3\n"
+         "0.0025,0.1000000000000000055511151231257827,4e-3\n0.005,-0.2,5\n")
 
 
 @pytest.mark.parametrize("text, fast", [
