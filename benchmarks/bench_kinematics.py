@@ -1,4 +1,7 @@
-"""FK and IK cost per call on the bundled robots.
+"""FK and IK cost per call on the bundled robots; forward kinematics against the plain Pinocchio
+calls for the same frames (``pin.forwardKinematics`` + ``updateFramePlacement`` on the reduced
+model), alone and with the loop-closure residual done in plain Pinocchio (``forwardKinematics``
+on the open tree + each constraint's ``calc``), same run (issue 30: at most 1.5x).
 
 python benchmarks/bench_kinematics.py
 """
@@ -10,12 +13,43 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # before numpy loads OpenBLAS
 
 import numpy as np
+import pinocchio as pin
 from common import per_call, report
 
 from rcm_kin import load_robot
 from rcm_kin.kinematics.fk import forward_kinematics, frame_placement
 from rcm_kin.kinematics.numeric_ik import solve_ik
 from rcm_kin.kinematics.psm_ik import shaft_tip_ik, tool_pose_ik, wrist_ik
+
+
+def plain_calls(robot, q):
+    """The plain Pinocchio calls of ``forward_kinematics(robot, q)``: (frames only, with the closure)."""
+    model, data, tree, tree_data = robot.reduced, robot.reduced.createData(), robot.tree, robot.tree.createData()
+    constraints = [(c.model, c.model.createData()) for c in robot.constraints]
+    frames = robot.description.frames
+    ids = [model.getFrameId(name) for name in frames]
+    q_reduced, q_tree = np.zeros(model.nq), np.zeros(tree.nq)
+    q_reduced[robot.reduced_q_actuated], q_tree[robot.tree_q_actuated] = q, q
+
+    def frames_only():
+        pin.forwardKinematics(model, data, q_reduced)
+        return {name: pin.updateFramePlacement(model, data, i).copy() for name, i in zip(frames, ids)}
+
+    def with_closure():
+        placements = frames_only()
+        pin.forwardKinematics(tree, tree_data, q_tree)
+        for c, c_data in constraints:
+            c.calc(tree, tree_data, c_data)
+        return placements, [c_data.constraint_position_error for _, c_data in constraints]
+    return frames_only, with_closure
+
+
+def fk_ratios(psm, q) -> None:
+    frames_only, with_closure = plain_calls(psm, q)
+    fk = per_call(lambda: forward_kinematics(psm, q), 5000)
+    plain, closure = per_call(frames_only, 5000), per_call(with_closure, 5000)
+    print(f"forward_kinematics(psm) {fk * 1e6:.2f} us: {fk / plain:.2f}x the plain FK of its 3 frames "
+          f"({plain * 1e6:.2f} us), {fk / closure:.2f}x with the closure residual ({closure * 1e6:.2f} us)")
 
 
 def main() -> None:
@@ -35,6 +69,7 @@ def main() -> None:
         ("MTM numeric wrist-centre IK (DLS)",
          per_call(lambda: solve_ik(mtm, "wrist_center", wrist_center, joints=("j1", "j2", "j3")), 200)),
     ])
+    fk_ratios(psm, q)
 
 
 if __name__ == "__main__":

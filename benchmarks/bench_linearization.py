@@ -10,7 +10,7 @@ user would write, same run:
 - for scale, ``linearize_pinocchio``: the same matrices as ours from Pinocchio (ABA derivatives,
   the closure projection, the offsets' gravity derivatives), which the tests hold to 1e-10.
 
-    python benchmarks/bench_linearization.py
+    python benchmarks/bench_linearization.py [POINTS ...]     (grid points per axis, default 41)
 Target: ``linearize_grid`` <= 0.33x the plain ``computeABADerivatives`` loop per pose.
 """
 
@@ -34,10 +34,10 @@ from rcm_kin.model.reduced import tree_configuration  # noqa: E402
 from rcm_kin.symbolic.compiled import map_points  # noqa: E402
 
 
-def main() -> None:
+def main(points: int = 41) -> None:
     psm, params = load_robot("psm"), load_drive_parameters()
     model = driven_dynamics(psm, params)
-    grid = np.radians(np.linspace(-30, 30, 41))
+    grid = np.radians(np.linspace(-30, 30, points))
     P, R = np.meshgrid(grid, grid, indexing="ij")
     Q = np.column_stack([R.ravel(), P.ravel(), np.full(R.size, 0.08)])
     n = len(Q)
@@ -72,10 +72,13 @@ def main() -> None:
             ("the same, interpreted CasADi map, per pose", interpreted_time),
             ("Python loop of pin.computeABADerivatives (open tree), per pose", aba_time),
             ("linearize_pinocchio (same matrices via Pinocchio), per pose", ours_time)])
-    print(f"41 x 41 grid: compiled/ABA-loop = {compiled_time / aba_time:.3f} (target <= 0.33); "
+    print(f"{points} x {points} grid: compiled/ABA-loop = {compiled_time / aba_time:.3f} (target <= 0.33); "
           f"interpreted/ABA-loop = {interpreted_time / aba_time:.2f}; "
           f"compiled/interpreted = {compiled_time / interpreted_time:.3f}; CasADi {ca.__version__}")
 
 
 if __name__ == "__main__":
-    main()
+    import sys
+
+    for points in map(int, sys.argv[1:] or ["41"]):       # e.g. 41 201 (issue 30: at most 0.3x at both)
+        main(points)

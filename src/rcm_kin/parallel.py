@@ -1,4 +1,5 @@
-"""Batches of independent work on a ``dask.distributed`` cluster (generic plumbing).
+"""Batches of independent work on a ``dask.distributed`` cluster, or for small runs on a pool of
+forked processes (:func:`map_local`: no cluster to start), generic plumbing.
 
 Without a scheduler address a run starts an embedded :class:`~distributed.LocalCluster` sized
 to the machine (one worker process per core, one thread each: the simulations are pure Python
@@ -26,6 +27,10 @@ from tqdm import tqdm
 from rcm_kin.errors import RcmKinError, WorkLimitError, recording_warnings, reissue
 
 CONNECT_SECONDS = 10.0      # to reach an existing scheduler and hear it answer
+# at most this many samples run on a local pool of forked processes rather than an embedded Dask
+# cluster, whose start costs about 4.5 s (docs/performance.md): 64 robustness samples are about
+# 40 s of CPU with their compiles, so the cluster's start is a tenth of a larger run at most
+LOCAL_ITEMS = 64
 BATCHES_PER_WORKER = 4      # default batch size: about this many batches per worker, for balance
 
 
@@ -169,6 +174,43 @@ def map_batches(client, function: Callable, batches: list, progress: bool = True
                 on_batch(done)
     results = []
     for value, raised in client.gather(futures):      # the workers' warnings, raised here
+        reissue(raised)
+        results.append(value)
+    return results
+
+
+def map_local(function: Callable, batches: list, workers: int, progress: bool = True, desc: str = "batches",
+              on_batch: Callable[[int], None] | None = None, **shared) -> list:
+    """:func:`map_batches` without a cluster: ``function(batch, **shared)`` for every batch on a pool
+    of ``workers`` forked processes (in this process for one worker or one batch); the results in
+    batch order, the workers' warnings raised here, the first error raised here."""
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from multiprocessing import get_context
+
+    with tqdm(total=len(batches), desc=desc, unit="batch", file=sys.stderr, disable=not progress) as bar:
+        def tick(done: int) -> None:
+            bar.update()
+            if on_batch:
+                on_batch(done)
+
+        if workers <= 1 or len(batches) <= 1:
+            outcomes = []
+            for done, batch in enumerate(batches, start=1):
+                outcomes.append(recording_warnings(function, batch, **shared))
+                tick(done)
+        else:
+            with ProcessPoolExecutor(min(workers, len(batches)), mp_context=get_context("fork")) as pool:
+                futures = [pool.submit(recording_warnings, function, batch, **shared) for batch in batches]
+                try:
+                    for done, future in enumerate(as_completed(futures), start=1):
+                        future.result()
+                        tick(done)
+                except BaseException:
+                    pool.shutdown(cancel_futures=True)
+                    raise
+                outcomes = [future.result() for future in futures]
+    results = []
+    for value, raised in outcomes:
         reissue(raised)
         results.append(value)
     return results

@@ -20,6 +20,11 @@ STYLES = ({"ls": "-", "marker": "o", "ms": 4}, {"ls": "-", "lw": 2.4, "alpha": 0
           {"ls": "--", "marker": "x", "ms": 6}, {"ls": ":", "marker": "^", "ms": 4}, {"ls": "-."})
 IMAGE_SAMPLES = 401        # poses per axis a heat map's image is drawn from at least (or all of them)
 CONTOUR_SAMPLES = 301      # poses per axis a heat map's contour lines are traced on at most
+# the torque-map figures' margins (fractions of the figure), fixed for their fixed sizes: a constrained
+# layout measured every label for them, a third of their drawing time (docs/performance.md)
+FIXED = {"heatmaps": {"left": 0.06, "right": 0.97, "bottom": 0.11, "top": 0.87, "wspace": 0.3},
+         "trends": {"left": 0.06, "right": 0.99, "bottom": 0.12, "top": 0.93, "wspace": 0.2},
+         "insertion": {"left": 0.05, "right": 0.855, "bottom": 0.13, "top": 0.8, "wspace": 0.3}}
 
 
 @functools.cache
@@ -102,7 +107,7 @@ def effort_heatmaps(gmap, drive, path: str | Path, insertion_index: int = 0, ima
     (:func:`spread_samples`); the colour scale is the whole grid's."""
     plt = pyplot()
     pwm = gmap.effort.pwm
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), layout="constrained")
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), gridspec_kw=FIXED["heatmaps"])   # fixed: no layout solve
     extent = [*_span(gmap.roll_deg), *_span(gmap.pitch_deg)]
     rows, cols = (spread_samples(n, contour_samples) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
     pixels = tuple(slice(None, None, image_stride(n, image_samples)) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
@@ -116,7 +121,7 @@ def effort_heatmaps(gmap, drive, path: str | Path, insertion_index: int = 0, ima
             ax.contour(gmap.roll_deg[cols], gmap.pitch_deg[rows], data[np.ix_(rows, cols)], colors="k",
                        linewidths=0.5, levels=contour_levels(data, 9))
         ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=f"{joint} holding PWM")
-        bar = fig.colorbar(im, ax=ax, label="PWM (counts)")
+        bar = fig.colorbar(im, ax=ax, label="PWM (counts)", pad=0.2)   # room for the volts
         volts = drive[joint].pwm_sign * drive[joint].volts_per_pwm
         bar.ax.secondary_yaxis("left", functions=(lambda p, v=volts: p * v, lambda u, v=volts: u / v)).set_ylabel(
             "motor voltage (V)")
@@ -173,7 +178,7 @@ def thesis_trend_curves(gmap, path: str | Path, insertion_index: int = 0, others
     curve has its own line style; one lying on another says so in the legend."""
     plt = pyplot()
     e = gmap.effort
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw=FIXED["trends"])
     drawn_a, drawn_b = {}, {}
     for k, other in enumerate(others):
         i = int(np.argmin(np.abs(gmap.pitch_deg - other)))
@@ -202,7 +207,7 @@ def insertion_curves(gmap, path: str | Path) -> Path:
     the markers of the poses are staggered, so curves that coincide still show each pose."""
     plt = pyplot()
     e = gmap.effort
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.9), layout="constrained")
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.9), gridspec_kw=FIXED["insertion"])
     colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, len(gmap.pitch_deg)))
     quantities = (("roll holding torque", "N m"), ("pitch holding torque", "N m"), ("insertion holding force", "N"))
     for k, (ax, (name, unit)) in enumerate(zip(axes, quantities)):
@@ -216,7 +221,7 @@ def insertion_curves(gmap, path: str | Path) -> Path:
         ax.set(xlabel="insertion (mm)", ylabel=f"{name} ({unit})", title=name)
         ax.grid(alpha=0.3)
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside right center", fontsize=8)
+    fig.legend(handles, labels, loc="center right", fontsize=8)
     fig.suptitle("Holding effort versus insertion (calibrated gravity): the insertion moves weight along the shaft, "
                  "so roll torque changes only off roll 0,\npitch torque only off pitch 0, the insertion force "
                  "(weight along the shaft) not at all", fontsize=10)

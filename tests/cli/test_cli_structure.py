@@ -51,6 +51,19 @@ def test_cli_start_up_leaves_the_heavy_libraries_for_the_commands():
     assert "pinocchio" in loaded and not set(HEAVY) & set(loaded)
 
 
+def test_a_command_imports_its_own_module_only():
+    """``rcm-kin fk ...`` builds the parser of ``fk`` alone: the other commands' modules (and what
+    they import) are not loaded; its help is the full parser's."""
+    code = ("import sys, rcm_kin.cli as c; p = c.build_parser('fk'); "
+            "print(sorted(m for m in sys.modules if m.startswith('rcm_kin.cli.')))")
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert "rcm_kin.cli.kinematics" in loaded and "rcm_kin.cli.robustness" not in loaded
+    assert "rcm_kin.cli.simulation" not in loaded and "rcm_kin.cli.views" not in loaded
+    alone = rcm_kin.cli.build_parser("identify")._subparsers._group_actions[0].choices
+    full = rcm_kin.cli.build_parser()._subparsers._group_actions[0].choices
+    assert list(alone) == ["identify"] and alone["identify"].format_help() == full["identify"].format_help()
+
+
 def test_cli_has_every_command():
     commands = rcm_kin.cli.build_parser()._subparsers._group_actions[0].choices
     assert list(commands) == ["info", "fk", "ik", "gravity", "torque-map", "counterweights", "calibrate", "dynamics",

@@ -52,6 +52,26 @@ def test_lqi_equals_lqr_on_the_augmented_system_by_riccati():
     np.testing.assert_allclose(K, (np.linalg.solve(R, B_aug.T @ P))[0], rtol=1e-9)
 
 
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("integral", [False, True])
+def test_lqr_axis_is_python_controls_lqr(seed, integral):
+    """The SciPy Riccati solve that replaced python-control's ``lqr`` (and its second of imports)
+    gives python-control's gains, with and without ``integral_action``, to 1e-10."""
+    import control
+
+    rng = np.random.default_rng(seed)
+    a, b = rng.normal(0.0, 3.0, (2, 2)), rng.normal(0.0, 2.0, (2, 1))
+    Q, R = np.diag(rng.uniform(0.1, 500.0, 3 if integral else 2)), np.array([[rng.uniform(1e-3, 1.0)]])
+    extra = {"integral_action": np.array([[1.0, 0.0]])} if integral else {}
+    expected = np.asarray(control.lqr(a, b, Q, R, **extra)[0])[0]
+    np.testing.assert_allclose(lqr_axis(a, b, Q, R, integral=integral), expected, rtol=1e-10, atol=1e-10)
+
+
+def test_lqr_axis_refuses_unsymmetric_weights():
+    with pytest.raises(RcmKinError, match="symmetric"):
+        lqr_axis(THESIS_A, THESIS_B, np.array([[1.0, 2.0], [0.0, 1.0]]), np.array([[1.0]]))
+
+
 @pytest.fixture(scope="module")
 def design(psm):
     return driven_dynamics(psm, coulomb=False)

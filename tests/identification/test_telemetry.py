@@ -150,3 +150,44 @@ def test_every_shared_log_reads_as_the_csv_module_reads_it(shared_data):
         for joint in log.pwm:            # the drive-train fits' 1 ms grid is within the upsampling bound
             u, _, period = resample(log, joint, PERIOD)
             assert period == PERIOD and u.size == int(np.ceil(log.time[-1] / PERIOD)), path.name
+
+
+PLAIN = ("__time,/t/roll/position,/t/roll/velocity\n0.0,0.1,-3\n"
+         "0.0025,0.1000000000000000055511151231257827,4e-3\n0.005,-0.2,5\n")
+
+
+@pytest.mark.parametrize("text, fast", [
+    (PLAIN, True),
+    (PLAIN.replace("\n", "\r\n"), True),                           # Windows line ends
+    (PLAIN.rstrip("\n"), True),                                    # no newline at the end
+    (PLAIN + "0.0075,0.3,6\n" * 3, True),
+    (PLAIN.replace("0.005,-0.2,5\n", "\n0.005,-0.2,5\n"), False),  # a blank line: its row is left out, warned
+    (PLAIN + "0.0075,0.3", False),                                 # cut off mid-row
+    (PLAIN.replace("-0.2", ""), False),                            # an empty field: NaN
+    (PLAIN.replace("-0.2", '"-0.2"'), False),                      # quoted
+    (PLAIN.replace("-0.2", "-0.2,7"), False),                      # a long row
+    (PLAIN.replace("-0.2", "1_0"), False),                         # Python's float reads 10
+    (PLAIN + "# note,1,2\n", False),                               # not numeric: refused
+])
+def test_the_plain_reader_reads_as_the_csv_module(tmp_path, monkeypatch, text, fast):
+    """The fast reading (NumPy's parser) of a plain CSV and the csv module's reading of any CSV:
+    the same header, floats (bit for bit), line numbers, warnings and errors."""
+    path = tmp_path / "log.csv"
+    path.write_bytes(text.encode())
+    assert (telemetry._read_plain_csv(path) is not None) == fast
+
+    def read():
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                header, data, lines = telemetry._read_csv(path)
+            except Exception as exc:         # noqa: BLE001 - the same error either way
+                return type(exc), str(exc)
+        return header, data.tobytes(), data.shape, lines.tolist(), [str(w.message) for w in caught]
+
+    plain = read()
+    monkeypatch.setattr(telemetry, "_read_plain_csv", lambda path: None)
+    assert plain == read()
+    if fast:
+        rows = [r for r in csv.reader(text.splitlines())][1:]
+        assert plain[1] == np.array([[float(x) for x in r] for r in rows]).tobytes()

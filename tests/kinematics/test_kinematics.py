@@ -192,3 +192,37 @@ def test_clamped_shaft_tip_ik_is_the_ik_within_reach_and_clips_beyond_it(psm):
     assert clamped
     assert np.all(q >= psm.lower[index]) and np.all(q <= psm.upper[index])
     assert abs(abs(q[0]) - np.radians(30)) < 1e-12 and abs(q[1]) < 1e-9 and abs(q[2] - 0.1) < 1e-9
+
+
+def test_forward_kinematics_is_the_plain_pinocchio_calls(psm):
+    """The thin path (frame ids looked up once, the float array taken as it is) gives what
+    ``pin.forwardKinematics`` + ``updateFramePlacement`` give; the caller's array is copied, not kept."""
+    import pinocchio as pin
+
+    q = np.array([0.2, -0.3, 0.1, 0.4, 0.3, -0.2, 0.5])
+    fk = forward_kinematics(psm, q)
+    model = psm.reduced
+    data = model.createData()
+    q_reduced = np.zeros(model.nq)
+    q_reduced[psm.reduced_q_actuated] = q
+    pin.forwardKinematics(model, data, q_reduced)
+    for name, placement in fk.frames.items():
+        expected = pin.updateFramePlacement(model, data, model.getFrameId(name))
+        assert placement.isApprox(expected, 0.0)
+    assert fk.q is not q and np.array_equal(fk.q, q)
+    q[0] = 1.0
+    assert fk.q[0] == 0.2
+    assert list(forward_kinematics(psm, q, ["tool_tip", "rcm"]).frames) == ["tool_tip", "rcm"]
+
+
+@pytest.mark.parametrize("q", [np.array([np.nan, 0, 0, 0, 0, 0, 0.0]), np.array([np.inf, -np.inf, 0, 0, 0, 0, 0.0]),
+                               np.zeros(6), np.zeros(7, dtype=np.float32) + np.float32(np.nan)])
+def test_forward_kinematics_refuses_what_the_fast_path_does_not_take(psm, q):
+    with pytest.raises(RcmKinError, match="finite|takes 7"):
+        forward_kinematics(psm, q)
+
+
+def test_an_unknown_frame_is_an_error_every_time(psm):
+    for _ in range(2):
+        with pytest.raises(RcmKinError, match="no frame 'nowhere'"):
+            forward_kinematics(psm, np.zeros(7), ("tool_tip", "nowhere"))

@@ -8,6 +8,7 @@ library, format.
 from __future__ import annotations
 
 import contextlib
+import importlib
 import signal
 import sys
 import threading
@@ -15,23 +16,6 @@ import warnings
 from importlib.metadata import PackageNotFoundError, version
 
 from rcm_kin.atomic import stop_writes
-from rcm_kin.cli import (
-    calibration,
-    control,
-    counterweights,
-    drive_train,
-    export,
-    identification,
-    kinematics,
-    prediction,
-    robustness,
-    ros2,
-    safety,
-    schedule,
-    simulation,
-    statics,
-    views,
-)
 from rcm_kin.cli.common import RAW, Parser, command_options, with_flags
 from rcm_kin.cli.outputs import owned_outputs
 from rcm_kin.errors import RcmKinError
@@ -39,14 +23,18 @@ from rcm_kin.identification.rosbag import DEFAULT_TOPIC, telemetry_topic
 from rcm_kin.identification.telemetry import MAX_GAP, MAX_LOG_BYTES, MAX_LOG_ROWS, TIME_TOLERANCE
 
 TERMINATED = "terminated (SIGTERM): nothing written under a final name after the signal"
-# in the order of ``rcm-kin --help``
-COMMANDS = (kinematics.add_info, kinematics.add_fk, kinematics.add_ik,
-            statics.add_gravity, statics.add_torque_map, counterweights.add_counterweights, calibration.add_calibrate,
-            control.add_dynamics, control.add_linearize, schedule.add_schedule,
-            simulation.add_simulate, robustness.add_robustness, robustness.add_sweep,
-            identification.add_sysid, identification.add_greybox,
-            drive_train.add_identify, prediction.add_predict, drive_train.add_excite,
-            views.add_view, safety.add_safety, views.add_report, export.add_export, ros2.add_ros2)
+# in the order of ``rcm-kin --help``: (command, its module in rcm_kin.cli, the function that adds it),
+# the module imported when the command is built: a command pays for its own module's imports only
+COMMANDS = (("info", "kinematics", "add_info"), ("fk", "kinematics", "add_fk"), ("ik", "kinematics", "add_ik"),
+            ("gravity", "statics", "add_gravity"), ("torque-map", "statics", "add_torque_map"),
+            ("counterweights", "counterweights", "add_counterweights"), ("calibrate", "calibration", "add_calibrate"),
+            ("dynamics", "control", "add_dynamics"), ("linearize", "control", "add_linearize"),
+            ("schedule", "schedule", "add_schedule"), ("simulate", "simulation", "add_simulate"),
+            ("robustness", "robustness", "add_robustness"), ("sweep", "robustness", "add_sweep"),
+            ("sysid", "identification", "add_sysid"), ("greybox", "identification", "add_greybox"),
+            ("identify", "drive_train", "add_identify"), ("predict", "prediction", "add_predict"),
+            ("excite", "drive_train", "add_excite"), ("view", "views", "add_view"), ("safety", "safety", "add_safety"),
+            ("report", "views", "add_report"), ("export", "export", "add_export"), ("ros2", "ros2", "add_ros2"))
 # the commands that read telemetry logs: CSV, or ROS 2 bags whose JointState topic --topic names
 LOG_COMMANDS = ("calibrate", "sysid", "greybox", "identify", "predict", "report")
 LOG_BOUNDS = (f"logs: a CSV of at most {MAX_LOG_ROWS:,} rows and {MAX_LOG_BYTES // 2**20} MiB; time stamps in order\n"
@@ -54,7 +42,9 @@ LOG_BOUNDS = (f"logs: a CSV of at most {MAX_LOG_ROWS:,} rows and {MAX_LOG_BYTES 
               "log is refused naming the row")
 
 
-def build_parser() -> Parser:
+def build_parser(command: str | None = None) -> Parser:
+    """The ``rcm-kin`` parser with every command, or with ``command`` alone (one of
+    :data:`COMMANDS`: its module is the only one imported)."""
     parser = Parser(prog="rcm-kin", description=(
         "Models of RCM surgical robots (the bundled PSM and MTM, or any robot by the path of its URDF or sidecar): "
         "kinematics, dynamics, control. "
@@ -67,13 +57,16 @@ def build_parser() -> Parser:
         formatter_class=RAW)
     parser.add_argument("--version", action="version", version=f"rcm-kin {_version()}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    for add in COMMANDS:
-        add(sub)
+    for name, module, add in COMMANDS:
+        if command in (None, name):
+            getattr(importlib.import_module(f"rcm_kin.cli.{module}"), add)(sub)
     for name in LOG_COMMANDS:
-        command = sub.choices[name]
-        lines = [command.epilog, LOG_BOUNDS] if command.epilog else [LOG_BOUNDS]
-        command.epilog = ("\n" if command.formatter_class is RAW else "; ").join(lines)
-        command.add_argument("--topic", default=DEFAULT_TOPIC,
+        if name not in sub.choices:
+            continue
+        reader = sub.choices[name]
+        lines = [reader.epilog, LOG_BOUNDS] if reader.epilog else [LOG_BOUNDS]
+        reader.epilog = ("\n" if reader.formatter_class is RAW else "; ").join(lines)
+        reader.add_argument("--topic", default=DEFAULT_TOPIC,
                              help=f"telemetry topic of ROS 2 bag logs (.mcap, .db3; default {DEFAULT_TOPIC})")
     return parser
 
@@ -94,7 +87,8 @@ def main(argv: list[str] | None = None) -> int:
     Warnings raised while the command runs are held back: on success each is one line
     ``warning: ...`` on stderr; on an error only the error line is printed.
     """
-    parser, args = build_parser(), None
+    argv = sys.argv[1:] if argv is None else argv
+    parser, args = build_parser(argv[0] if argv and argv[0] in {c[0] for c in COMMANDS} else None), None
     with warnings.catch_warnings(record=True) as caught, _terminated_as_interrupt():
         try:
             args = parser.parse_args(argv)    # a usage error exits here (status 2), as argparse does

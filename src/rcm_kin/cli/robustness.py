@@ -36,9 +36,10 @@ EPILOG_SWEEP = (
 def add_scheduler(p) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on the Dask cluster of this scheduler (tcp://HOST:PORT; start one with `dask scheduler` "
-                        "and workers with `dask worker ADDRESS`); default: an embedded local cluster")
+                        "and workers with `dask worker ADDRESS`); default: an embedded local cluster "
+                        "(robustness: up to 64 samples on a pool of local processes, no cluster)")
     p.add_argument("--workers", type=count(1, 256, "workers"),
-                   help="worker processes of the embedded cluster (default: one per core)")
+                   help="worker processes of the embedded cluster or the local pool (default: one per core)")
 
 
 def add_robustness(sub) -> None:
@@ -74,7 +75,7 @@ def add_robustness(sub) -> None:
 
 def cmd_robustness(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.parallel import dask_client
+    from rcm_kin.parallel import LOCAL_ITEMS, dask_client
     from rcm_kin.robustness.execution import run_robustness
     from rcm_kin.robustness.sampling import drive_train_sources, read_standard_errors, uncertain_parameters
     from rcm_kin.robustness.task import Study
@@ -89,8 +90,13 @@ def cmd_robustness(args) -> None:
                   args.experiment, args.duration, args.skip)
     check_robustness(study, args.samples)
     out = new_folder(args.out, args.force) if args.out else None
-    with dask_client(args.scheduler, args.workers) as client:
-        result = run_robustness(study, args.samples, args.seed, client, args.batch_size, progress=progress_wanted(args))
+    if args.scheduler is None and args.samples <= LOCAL_ITEMS:    # a small run: no cluster to start
+        result = run_robustness(study, args.samples, args.seed, None, args.batch_size, progress=progress_wanted(args),
+                                workers=args.workers)
+    else:
+        with dask_client(args.scheduler, args.workers) as client:
+            result = run_robustness(study, args.samples, args.seed, client, args.batch_size,
+                                    progress=progress_wanted(args))
     lines = [f"{args.experiment}: {result.samples} samples (seed {args.seed}); max error deg p5/median/p95/worst"]
     for name, c in result.controllers.items():
         cells = [f"{axis} " + "/".join(f"{v:.2f}" for v in vars(a.max_error_deg).values())

@@ -3,7 +3,7 @@
 At each (roll, pitch) grid point the driven-joint model is linearised (Coulomb friction left
 out: see :func:`rcm_kin.dynamics.state_space.driven_dynamics`), and per axis
 
-- roll: LQR on ``[q, v]`` of the roll subsystem (python-control ``lqr``);
+- roll: LQR on ``[q, v]`` of the roll subsystem (the Riccati solve of python-control's ``lqr``);
 - pitch: LQI on ``[q, v]`` plus the integral of the position error (``lqr`` with
   ``integral_action``).
 
@@ -52,13 +52,24 @@ def axis_model(A: np.ndarray, B: np.ndarray, axis: int) -> tuple[np.ndarray, np.
 
 
 def lqr_axis(a: np.ndarray, b: np.ndarray, Q: np.ndarray, R: np.ndarray, integral: bool = False) -> np.ndarray:
-    """State-feedback row ``K`` of ``u = -K x`` (python-control ``lqr``) for one axis; with
-    ``integral`` the state is augmented by the integral of the first state (LQI)."""
-    import control  # python-control costs ~120 MB to import: only where gains are designed
+    """State-feedback row ``K`` of ``u = -K x`` for one axis, ``K = R^-1 B' X`` with ``X`` the
+    stabilising solution of the continuous algebraic Riccati equation (SciPy
+    ``solve_continuous_are``: the operations python-control's ``lqr`` performs without Slycot,
+    without its second of imports); with ``integral`` the state is augmented by the integral of
+    the first state (LQI, python-control's ``integral_action=[[1, 0]]``)."""
+    from scipy.linalg import solve_continuous_are  # SciPy's linalg only where gains are designed
 
-    extra = {"integral_action": np.array([[1.0, 0.0]])} if integral else {}
-    K, _, _ = control.lqr(a, b, Q, R, **extra)
-    return np.asarray(K)[0]
+    a, b = np.array(a, dtype=float, ndmin=2), np.array(b, dtype=float, ndmin=2)
+    Q, R = np.array(Q, dtype=float, ndmin=2), np.array(R, dtype=float, ndmin=2)
+    if integral:
+        n, m = a.shape[0], b.shape[1]
+        a = np.block([[a, np.zeros((n, 1))], [np.eye(1, n), np.zeros((1, 1))]])
+        b = np.vstack([b, np.zeros((1, m))])
+    for name, M, size in (("Q", Q, a.shape[0]), ("R", R, b.shape[1])):
+        if M.shape != (size, size) or not np.allclose(M, M.T):
+            raise RcmKinError(f"the LQR weight {name} must be a symmetric {size} x {size} matrix, got {M.tolist()}")
+    X = solve_continuous_are(a, b, Q, R)
+    return np.linalg.solve(R, b.T @ X)[0]
 
 
 def roll_gains(A: np.ndarray, B: np.ndarray, weights: Weights) -> np.ndarray:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,10 +20,17 @@ class ForwardKinematics:
     closure_residual: float       # largest loop-closure error of the configuration used (m)
 
 
+@functools.lru_cache(maxsize=256)
+def frame_ids(robot: Robot, frames: tuple[str, ...]) -> tuple[int, ...]:
+    """The reduced model's ids of ``frames`` (:meth:`Robot.frame_id`: an error names an unknown
+    one), looked up once per robot and frame tuple."""
+    return tuple(robot.frame_id(name) for name in frames)
+
+
 def frame_placement(robot: Robot, q: np.ndarray, frame: str, data: RobotData | None = None) -> pin.SE3:
     """Placement of one frame in the base frame at actuated ``q`` (reduced model); ``data``: the
     caller's workspace (:meth:`Robot.create_data`), default this thread's own."""
-    fid = robot.frame_id(frame)
+    fid = frame_ids(robot, (frame,))[0]
     reduced_data = robot.workspace(data).reduced
     pin.forwardKinematics(robot.reduced, reduced_data, robot.to_reduced(q))
     return pin.updateFramePlacement(robot.reduced, reduced_data, fid).copy()
@@ -37,10 +45,10 @@ def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None,
     :meth:`Robot.check_pose`)."""
     q = check_robot(robot).check_pose(q, allow_outside_limits=allow_outside_limits)
     data = robot.workspace(data)
-    frames = robot.description.frames if frames is None else frames
-    ids = [robot.frame_id(name) for name in frames]
-    pin.forwardKinematics(robot.reduced, data.reduced, robot.to_reduced(q))
-    placements = {name: pin.updateFramePlacement(robot.reduced, data.reduced, fid).copy()
-                  for name, fid in zip(frames, ids)}
+    frames = robot.description.frames if frames is None else tuple(frames)
+    model, reduced = robot.reduced, data.reduced
+    pin.forwardKinematics(model, reduced, robot.to_reduced(q))
+    placements = {name: pin.updateFramePlacement(model, reduced, fid).copy()
+                  for name, fid in zip(frames, frame_ids(robot, frames))}
     residual = closure_residual(robot, tree_configuration(robot, q), data)
-    return ForwardKinematics(q, placements, float(np.max(np.abs(residual))) if residual.size else 0.0)
+    return ForwardKinematics(q, placements, float(abs(residual).max()) if residual.size else 0.0)

@@ -13,6 +13,7 @@ threads using one robot never share scratch data.
 
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass, field
 
@@ -78,7 +79,7 @@ class Robot:
 
     def workspace(self, data: RobotData | None = None) -> RobotData:
         """``data`` if it is a workspace of this robot (else an error), or this thread's own."""
-        if data is None:
+        if data is None or data is getattr(self._threads, "data", None):     # this thread's own: checked
             return self.scratch
         if not isinstance(data, RobotData):
             raise RcmKinError(f"data must be this robot's RobotData (robot.create_data()), got {type(data).__name__}",
@@ -141,6 +142,9 @@ class Robot:
     def check_q(self, q, *, allow_short: bool = False, parameter: str = "q") -> np.ndarray:
         """``q`` as a float array of the actuated size, or a clear error (an RcmKinError naming
         ``parameter``). Short vectors are padded with zeros when ``allow_short``."""
+        if (type(q) is np.ndarray and q.dtype == np.float64 and q.shape == (self.nq,)
+                and all(map(math.isfinite, q.tolist()))):
+            return q.copy()               # the common case, without the checks' array operations
         try:
             q = np.atleast_1d(np.asarray(q, dtype=float))
         except (TypeError, ValueError):

@@ -132,6 +132,7 @@ def run_jobs(jobs: list[Job], workers: int, progress: bool = False) -> dict[str,
     The first error in a job is raised here, the other jobs cancelled or stopped (:func:`process_pool`)."""
     from tqdm import tqdm
 
+    preload()
     results = {}
     with tqdm(total=len(jobs), desc="report", unit="part", disable=not progress) as bar:
         with process_pool(workers) as pool:
@@ -142,6 +143,22 @@ def run_jobs(jobs: list[Job], workers: int, progress: bool = False) -> dict[str,
                 bar.set_postfix_str(futures[future])
                 bar.update()
     return results
+
+
+# imported before the fork, once, by the modules that more than one worker imports (each worker
+# imported them again: matplotlib alone is about 0.5 s of CPU a worker); the others stay in theirs
+PRELOAD = ("rcm_kin.visualization.views", "scipy.interpolate", "rcm_kin.simulation.experiments")
+
+
+def preload() -> None:
+    """Import :data:`PRELOAD` and matplotlib's pyplot (on Agg) in this process, before the pool forks."""
+    import importlib
+
+    from rcm_kin.plotting import pyplot
+
+    pyplot()
+    for name in PRELOAD:
+        importlib.import_module(name)
 
 
 def _write_sections(out: Path, data, map_points: int, progress: bool, workers: int) -> Path:

@@ -1,4 +1,5 @@
-"""The robustness study's batches on a ``dask.distributed`` cluster (:mod:`rcm_kin.parallel`).
+"""The robustness study's batches on a ``dask.distributed`` cluster (:mod:`rcm_kin.parallel`), or,
+for a small run without a scheduler, on a pool of forked processes.
 
 Without a scheduler address the run starts an embedded :class:`~distributed.LocalCluster` sized
 to the machine (one worker process per core, one thread each: the simulations are pure Python
@@ -21,7 +22,15 @@ from __future__ import annotations
 from contextlib import nullcontext
 from typing import Callable
 
-from rcm_kin.parallel import batches_of, dask_client, default_batch_size, map_batches
+from rcm_kin.parallel import (
+    LOCAL_ITEMS,
+    batches_of,
+    dask_client,
+    default_batch_size,
+    machine_workers,
+    map_batches,
+    map_local,
+)
 from rcm_kin.robustness.sampling import sample_seeds
 from rcm_kin.robustness.statistics import Robustness, summarise
 from rcm_kin.robustness.task import Study, run_batch
@@ -41,13 +50,22 @@ def run_in_process(study: Study, samples: int, seed: int = 0) -> Robustness:
 
 
 def run_robustness(study: Study, samples: int, seed: int = 0, client=None, batch_size: int | None = None,
-                   progress: bool = True, on_batch: Callable[[int], None] | None = None) -> Robustness:
-    """``samples`` samples of ``study`` on ``client``'s cluster (default: an embedded local
-    cluster), seeded by ``seed``; the same result whatever the cluster and the batch size. The
-    work is checked first (:func:`rcm_kin.robustness.work.check_robustness`)."""
+                   progress: bool = True, on_batch: Callable[[int], None] | None = None,
+                   workers: int | None = None) -> Robustness:
+    """``samples`` samples of ``study`` on ``client``'s cluster, seeded by ``seed``; the same result
+    whatever the cluster and the batch size. Without a client: at most
+    :data:`~rcm_kin.parallel.LOCAL_ITEMS` samples on a pool of ``workers`` forked processes
+    (:func:`~rcm_kin.parallel.map_local`: no cluster's start to pay), more on an embedded local
+    cluster of ``workers`` (default: the cores this process may use). The work is checked first
+    (:func:`rcm_kin.robustness.work.check_robustness`)."""
     check_robustness(study, samples)
     seeds = list(enumerate(sample_seeds(seed, samples)))
-    with dask_client() if client is None else nullcontext(client) as client:
+    if client is None and samples <= LOCAL_ITEMS:
+        workers = workers or machine_workers()
+        batches = batches_of(seeds, batch_size or default_batch_size(samples, workers))
+        results = map_local(_batch, batches, workers, progress, "robustness", on_batch, study=study)
+        return summarise(study, seed, [outcome for batch in results for outcome in batch])
+    with dask_client(workers=workers) if client is None else nullcontext(client) as client:
         if batch_size is None:
             batch_size = default_batch_size(samples, len(client.nthreads()))
         results = map_batches(client, _batch, batches_of(seeds, batch_size), progress, "robustness", on_batch,

@@ -9,10 +9,12 @@ schedule`` does.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 
 import numpy as np
 
 from rcm_kin.control.gain_schedule import THESIS_PITCH_DEG, THESIS_ROLL_DEG, GainSchedule, schedule_gains
+from rcm_kin.control.schedule_cache import cached_schedule, schedule_key
 from rcm_kin.control.schedule_file import read_schedule_file
 from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics, holding_pwm
@@ -95,11 +97,16 @@ def psm_plant(params: DriveParameters, period: float, substeps: int = 4, fast: b
 def psm_schedule(params: DriveParameters | None = None) -> GainSchedule:
     """The gain schedule of the PSM with ``params`` (default: shipped set) on the thesis grid,
     designed on the model without Coulomb friction (as ``rcm-kin schedule``); computed once per
-    process and parameter set (about 0.5 s)."""
+    process and parameter set, and kept on disk (:mod:`rcm_kin.control.schedule_cache`: a fresh
+    process reads it in milliseconds instead of importing SciPy and designing it again)."""
     params = params or load_drive_parameters()
-    key = (load_robot("psm"), exact_key(params))
+    psm = load_robot("psm")
+    key = (psm, exact_key(params))
     if key not in _SCHEDULES:
-        _SCHEDULES[key] = schedule_gains(_smooth_model(params), THESIS_ROLL_DEG, THESIS_PITCH_DEG)
+        disk_key = schedule_key("thesis grid", repr(exact_key(params)), repr(psm.description),
+                                hashlib.sha256(psm.description.urdf.read_bytes()).hexdigest())
+        _SCHEDULES[key] = cached_schedule(disk_key, lambda: schedule_gains(_smooth_model(params), THESIS_ROLL_DEG,
+                                                                           THESIS_PITCH_DEG))
     return _SCHEDULES[key]
 
 

@@ -12,7 +12,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from rcm_kin.errors import RcmKinError, WorkLimitError
 from rcm_kin.hardware import HOME_INSERTION
@@ -98,6 +97,8 @@ def target_reference(psm: Robot, duration: float | None, period: float,
                      trajectory: str | Path | None = None) -> Reference:
     """The target-following experiment: MTM displacements through the teleoperation map and the
     PSM IK, splined (C2) at the controller rate; ``duration`` None = the recording's length."""
+    from scipy.interpolate import CubicSpline  # 0.35 s of SciPy imports: only for this experiment
+
     t_raw, displacement = load_mtm_trajectory(trajectory)
     joints = teleop_joint_targets(psm, default_teleop_map(psm), displacement)
     spline = CubicSpline(t_raw, joints, bc_type="clamped")

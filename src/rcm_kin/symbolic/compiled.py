@@ -236,13 +236,13 @@ def _sha256(path: Path) -> str:
         return hashlib.file_digest(fh, "sha256").hexdigest()
 
 
-def prune_cache(folder: Path, keep: Path, limit: int | None = None) -> None:
-    """Delete the least recently used ``*.so`` in ``folder`` beyond ``limit`` (default
-    :data:`CACHE_LIBRARIES`), never ``keep``. A library another process has loaded stays valid
+def prune_cache(folder: Path, keep: Path, limit: int | None = None, pattern: str = "*.so") -> None:
+    """Delete the least recently used ``pattern`` files (and their checksum files) in ``folder``
+    beyond ``limit`` (default :data:`CACHE_LIBRARIES`), never ``keep``. A library another process has loaded stays valid
     (its mapping outlives the name); one about to be loaded is rebuilt (:func:`loaded_library`)."""
     limit = CACHE_LIBRARIES if limit is None else limit
     libraries = []
-    for path in folder.glob("*.so"):
+    for path in folder.glob(pattern):
         try:
             libraries.append((path.stat().st_mtime, path))
         except OSError:

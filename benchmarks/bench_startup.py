@@ -1,0 +1,144 @@
+"""What a user feels (issue 30): commands from a fresh process against ``python -c "import
+pinocchio"``, and the in-process cost of a controller period against the kernel's, same run.
+
+Fresh processes, interleaved, best of ``--repeats`` wall times (a process's start-up is its
+imports, the cached files it reads, and its work):
+
+- ``rcm-kin simulate psm --experiment sine --controller scheduled --duration 31 --json``
+  (target: at most 4x the Pinocchio import);
+- ``rcm-kin torque-map psm --out DIR`` (61 x 61, the three figures; target at most 6x), and
+  ``python -c "import matplotlib.pyplot"`` for scale;
+- ``rcm-kin --help``.
+
+In process: ``run_experiment`` of the same simulation, warm (second call), per controller period,
+against the compiled kernel alone (``simulate_compiled`` on the already built plant and law;
+target within 2x).
+
+``--robustness``: ``rcm-kin robustness psm --controller p --controller scheduled --experiment sine``
+with 8 and 32 samples from fresh processes; a sample's cost is the difference over 24, against the
+in-process simulation of the same controllers and experiment (target: at most 3x).
+
+``--against SRC`` runs the commands a second time with ``PYTHONPATH=SRC`` (another checkout's
+``src``, e.g. ``git archive main src | tar -x -C /tmp/main``): before and after in one run. The
+caches (compiled functions, numba, gain schedules) are warm: run each command once first, as the
+benchmark does.
+
+    python benchmarks/bench_startup.py [--repeats 5] [--against /tmp/main/src]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from common import best_of  # noqa: E402
+
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+SIMULATE = ["simulate", "psm", "--experiment", "sine", "--controller", "scheduled", "--duration", "31", "--json"]
+
+
+def fresh(args: list[str], src: str = SRC) -> float:
+    """Wall seconds of ``python args`` in a new process with ``src`` first on the path."""
+    env = {**os.environ, "PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1"}
+    start = time.perf_counter()
+    subprocess.run([sys.executable, *args], env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return time.perf_counter() - start
+
+
+def commands(out: str) -> dict[str, list[str]]:
+    return {"import pinocchio": ["-c", "import pinocchio"],
+            "import matplotlib.pyplot": ["-c", "import matplotlib.pyplot"],
+            "rcm-kin --help": ["-m", "rcm_kin.cli", "--help"],
+            "simulate (31 s, scheduled)": ["-m", "rcm_kin.cli", *SIMULATE],
+            "torque-map psm --out (61 x 61)": ["-m", "rcm_kin.cli", "torque-map", "psm", "--out", out]}
+
+
+def fresh_processes(repeats: int, against: str | None) -> None:
+    sources = {"this": SRC} | ({"against": against} if against else {})
+    with tempfile.TemporaryDirectory() as out:
+        cases = commands(out)
+        best = {(name, label): float("inf") for name in cases for label in sources}
+        for name, args in cases.items():           # warm the caches
+            for src in sources.values():
+                fresh(args, src)
+        for _ in range(repeats):                   # interleaved: the machine's load falls on all alike
+            for name, args in cases.items():
+                for label, src in sources.items():
+                    best[name, label] = min(best[name, label], fresh(args, src))
+    base = best["import pinocchio", "this"]
+    print(f"fresh processes, best of {repeats} (load average {os.getloadavg()[0]:.2f}); "
+          f"import pinocchio {base:.3f} s")
+    for name in cases:
+        row = "  ".join(f"{label} {best[name, label]:6.3f} s = {best[name, label] / base:5.2f}x" for label in sources)
+        print(f"  {name:32} {row}")
+
+
+def in_process() -> None:
+    sys.path.insert(0, SRC)
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.simulation.compiled_loop import loop_law, simulate_compiled
+    from rcm_kin.simulation.experiments import (
+        experiment_reference,
+        named_controller,
+        psm_plant_and_schedule,
+        run_experiment,
+    )
+    from rcm_kin.simulation.firmware import FirmwareSettings
+
+    params, settings = load_drive_parameters(), FirmwareSettings()
+    run_experiment("sine", "scheduled", 31.0, params, settings)
+    whole = best_of(lambda: run_experiment("sine", "scheduled", 31.0, params, settings), 3)
+    plant, _ = psm_plant_and_schedule(params, settings.period, fast=True)
+    law = loop_law(named_controller("scheduled", params))
+    reference = experiment_reference("sine", settings.period, 31.0)
+    kernel = best_of(lambda: simulate_compiled(plant, law, "scheduled", reference, settings), 3)
+    ticks = reference.time.size + round(1.0 / settings.period)
+    print(f"in process, per controller period (31 s + 1 s settling, {ticks} periods): run_experiment "
+          f"{whole / ticks * 1e6:.2f} us, the kernel alone {kernel / ticks * 1e6:.2f} us = {whole / kernel:.2f}x")
+
+
+ROBUSTNESS = ["-m", "rcm_kin.cli", "robustness", "psm", "--controller", "p", "--controller", "scheduled",
+              "--experiment", "sine", "--json", "--samples"]
+
+
+def robustness(repeats: int, against: str | None) -> None:
+    sys.path.insert(0, SRC)
+    from rcm_kin.dynamics.drive import load_drive_parameters
+    from rcm_kin.simulation.experiments import run_experiment
+
+    params = load_drive_parameters()
+    for name in ("p", "scheduled"):
+        run_experiment("sine", name, None, params)
+    simulation = best_of(lambda: [run_experiment("sine", name, None, params) for name in ("p", "scheduled")], 3)
+    for label, src in ({"this": SRC} | ({"against": against} if against else {})).items():
+        runs = {n: min(fresh(ROBUSTNESS + [str(n)], src) for _ in range(repeats)) for n in (8, 32)}
+        sample = (runs[32] - runs[8]) / 24
+        print(f"robustness ({label}): 8 samples {runs[8]:.2f} s, 32 samples {runs[32]:.2f} s: a sample "
+              f"{sample:.3f} s = {sample / simulation:.1f}x the in-process simulation of both controllers "
+              f"({simulation:.3f} s)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--against", help="another checkout's src folder, run in the same rounds")
+    parser.add_argument("--skip-fresh", action="store_true")
+    parser.add_argument("--robustness", action="store_true", help="also the robustness samples (about a minute)")
+    args = parser.parse_args()
+    if not args.skip_fresh:
+        fresh_processes(args.repeats, args.against)
+    in_process()
+    if args.robustness:
+        robustness(max(1, args.repeats // 2), args.against)
+
+
+if __name__ == "__main__":
+    main()
