@@ -49,6 +49,7 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
     if scheduler is None:
         n = workers or machine_workers()
         check_workers(n)
+        _quiet_resource_tracker()
         # silence_logs: the workers' "Compute Failed" reports would precede the one-line error
         # preload: this module's dask_setup, in each worker process (Ctrl-C is the parent's to handle)
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
@@ -62,6 +63,20 @@ def dask_client(scheduler: str | None = None, workers: int | None = None) -> Ite
         raise RcmKinError(f"cannot reach a Dask scheduler at {scheduler}: {exc}") from None
     with client:
         yield client
+
+
+def _quiet_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (if not running) with its leak report off: it
+    unlinks the semaphores a cluster stopped by a signal leaves behind, then says so on stderr after
+    the run's one error line."""
+    from multiprocessing import resource_tracker
+
+    flags = sys.warnoptions
+    sys.warnoptions = [*flags, "ignore:resource_tracker:UserWarning"]
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        sys.warnoptions = flags
 
 
 def check_scheduler(address: str, seconds: float = CONNECT_SECONDS) -> None:
@@ -184,8 +199,7 @@ def map_local(function: Callable, batches: list, workers: int, progress: bool = 
     """:func:`map_batches` without a cluster: ``function(batch, **shared)`` for every batch on a pool
     of ``workers`` forked processes (in this process for one worker or one batch); the results in
     batch order, the workers' warnings raised here, the first error raised here."""
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-    from multiprocessing import get_context
+    from concurrent.futures import as_completed
 
     with tqdm(total=len(batches), desc=desc, unit="batch", file=sys.stderr, disable=not progress) as bar:
         def tick(done: int) -> None:
@@ -193,21 +207,17 @@ def map_local(function: Callable, batches: list, workers: int, progress: bool = 
             if on_batch:
                 on_batch(done)
 
-        if workers <= 1 or len(batches) <= 1:
+        if check_workers(workers) == 1 or len(batches) <= 1:
             outcomes = []
             for done, batch in enumerate(batches, start=1):
                 outcomes.append(recording_warnings(function, batch, **shared))
                 tick(done)
         else:
-            with ProcessPoolExecutor(min(workers, len(batches)), mp_context=get_context("fork")) as pool:
+            with process_pool(min(workers, len(batches))) as pool:      # an error or a signal stops it
                 futures = [pool.submit(recording_warnings, function, batch, **shared) for batch in batches]
-                try:
-                    for done, future in enumerate(as_completed(futures), start=1):
-                        future.result()
-                        tick(done)
-                except BaseException:
-                    pool.shutdown(cancel_futures=True)
-                    raise
+                for done, future in enumerate(as_completed(futures), start=1):
+                    future.result()
+                    tick(done)
                 outcomes = [future.result() for future in futures]
     results = []
     for value, raised in outcomes:

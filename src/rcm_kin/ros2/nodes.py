@@ -190,8 +190,8 @@ class RosNode:
             self.close()
             first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
             if "ROSArgs" in type(exc).__name__:
-                raise RcmKinError(f"ROS did not take the arguments after --ros-args: {first} (--ros-args comes "
-                                  "last; ROS reads -p NAME:=VALUE and -r FROM:=TO)", parameter="ros_args") from None
+                raise RcmKinError(f"ROS did not take the arguments `ros_args`: {first} (ROS reads -p NAME:=VALUE "
+                                  "and -r FROM:=TO)", parameter="ros_args") from None
             raise RcmKinError(f"ROS 2 could not start a node (no DDS transport?): {first}") from None
         try:
             self.options = _with_parameters(self.node, options)
@@ -351,8 +351,9 @@ def run_record(options: NodeOptions = NodeOptions(), ros_args: list[str] | None 
     same checks) until ``messages`` are in (0: the bound of one log, ``MAX_LOG_ROWS``), ``duration``
     s pass or a stop signal."""
     if options.convention != "firmware":
-        raise RcmKinError("record-check reads the firmware's telemetry (deg, the PWM in `velocity`); the CRTK "
-                          "convention's measured_js carries no PWM: use --convention firmware", parameter="convention")
+        raise RcmKinError("a telemetry log is the firmware's telemetry (deg, the PWM in `velocity`); the CRTK "
+                          "convention's measured_js carries no PWM: set `convention` to firmware",
+                          parameter="convention")
     with RosNode("record", options, ros_args) as ros:
         return _record(ros, messages)
 
