@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 import common  # noqa: E402,F401  (OPENBLAS_NUM_THREADS=1)
 
 import rcm_kin.atomic as atomic  # noqa: E402
-import rcm_kin.cli.common as cli_common  # noqa: E402
+import rcm_kin.cli.outputs as cli_outputs  # noqa: E402
 import rcm_kin.symbolic.compiled as compiled  # noqa: E402
 from rcm_kin.cli import main  # noqa: E402
 
@@ -36,7 +36,7 @@ def plain_writes():
     with mock.patch.object(atomic, "_reserve", lambda final: final), \
             mock.patch.object(atomic, "_sync", lambda temporary: None), \
             mock.patch.object(atomic, "_commit", lambda temporary, final: None), \
-            mock.patch.object(cli_common, "_own", lambda path, folder, force: None), \
+            mock.patch.object(cli_outputs, "_own", lambda path, folder, force: None), \
             mock.patch.object(compiled, "library_mismatch", lambda library, key: None):
         yield
 

@@ -190,12 +190,51 @@ def test_a_claimed_file_that_appears_meanwhile_is_not_replaced(tmp_path):
     assert out.read_text() == "forced\n"
 
 
-def test_a_claim_clears_the_unfinished_writes_of_stopped_workers(tmp_path):
+def test_a_claim_clears_its_own_unfinished_writes_and_nobody_elses(tmp_path):
+    """A worker stopped outright leaves its temporary (reserved, never committed): the claim removes
+    it at its end, and leaves alone a temporary of anyone else (another run's, in a subfolder)."""
+    import rcm_kin.atomic as atomic
+
     folder = tmp_path / "report"
+    (folder / "sub").mkdir(parents=True)
+    foreign = folder / "sub" / f".figure.0a1b2c3d{PARTIAL}.png"
+    foreign.write_bytes(b"another run's, still being written")
     with claim(folder, folder=True):
-        (folder / "sub").mkdir()
-        (folder / "sub" / f".figure.0a1b2c3d{PARTIAL}.png").write_bytes(b"half")
-    assert sorted(p.name for p in folder.rglob("*")) == ["sub"]          # nothing written: no manifest either
+        stopped = atomic._reserve(folder / "sub" / "figure.png")      # a worker killed before its rename
+        assert stopped.exists()
+    assert not stopped.exists() and foreign.exists()
+
+
+def test_a_link_out_of_a_claimed_folder_is_refused_at_any_depth(tmp_path):
+    """A subfolder that is a link out of the claimed folder: no write goes through it."""
+    folder, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "precious.txt").write_text("the user's")
+    folder.mkdir()
+    (folder / "figs").symlink_to(elsewhere)
+    with claim(folder, folder=True), pytest.raises(RcmKinError, match="leads out of the output folder"):
+        write_text(folder / "figs" / "precious.txt", "overwritten")
+    assert (elsewhere / "precious.txt").read_text() == "the user's"
+    assert not any(PARTIAL in p.name for p in elsewhere.iterdir())
+
+
+def test_a_file_changed_by_someone_else_during_a_run_stays_theirs(tmp_path):
+    """The manifest takes what the run committed (its forked workers' too, by the journal), not
+    every file that changed meanwhile: a user's edit during the run is refused by the next run."""
+    folder = tmp_path / "out"
+    with claim(folder, folder=True):
+        write_text(folder / "map.csv", "ours\n")
+        (folder / "notes.txt").write_text("the user's, written while the run worked")
+        if os.fork() == 0:                          # a forked worker commits a file of the run
+            try:
+                write_text(folder / "worker.csv", "a worker's\n")
+            finally:
+                os._exit(0)
+        os.wait()
+    assert set(json.loads((folder / MANIFEST).read_text())["files"]) == {"map.csv", "worker.csv"}
+    with claim(folder, folder=True), pytest.raises(RcmKinError, match="did not write it"):
+        write_text(folder / "notes.txt", "replaced")
+    assert (folder / "notes.txt").read_text() == "the user's, written while the run worked"
 
 
 def test_no_write_lands_after_stop_writes(tmp_path, monkeypatch):

@@ -30,13 +30,14 @@ import fcntl
 import json
 import os
 import secrets
+import signal
 import stat
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, read_bounded
 
 PARTIAL = ".partial"
 """The marker in a temporary's name: a file named ``.<stem>.<random>.partial<suffix>`` is an
@@ -107,9 +108,12 @@ def write_bytes(path: str | Path, data: bytes) -> Path:
 
 
 def _reserve(final: Path) -> Path:
-    """Create a new empty temporary file beside ``final`` (exclusively: never an existing name)."""
+    """Create a new empty temporary file beside ``final`` (exclusively: never an existing name),
+    named with the tag of the claim it is under, if any (so the claim clears only its own)."""
+    claim = _claim_of(final) if _CLAIMS else None
+    tag = claim.tag if claim is not None else ""
     for _ in range(100):
-        temporary = final.with_name(f".{final.stem}.{secrets.token_hex(4)}{PARTIAL}{final.suffix}")
+        temporary = final.with_name(f".{final.stem}.{tag}{secrets.token_hex(4)}{PARTIAL}{final.suffix}")
         try:
             fd = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)   # the umask applies
         except FileExistsError:
@@ -155,7 +159,7 @@ def _commit(temporary: Path, final: Path) -> None:
     else:
         os.replace(temporary, final)
     if claim is not None:
-        claim.written.add(final.resolve())
+        claim.record(final.resolve())
     with contextlib.suppress(OSError):      # not every system opens a folder (Windows): the rename stands
         fd = os.open(final.parent, os.O_RDONLY)
         try:
@@ -165,23 +169,27 @@ def _commit(temporary: Path, final: Path) -> None:
 
 
 MANIFEST = ".rcm-kin-outputs.json"
-"""The manifest of a claimed folder: the files rcm_kin wrote there (relative path -> [size, mtime_ns])."""
+"""The manifest of a claimed folder: the files rcm_kin wrote there (relative path -> [size, mtime_ns]).
+Beside it while a run works, ``<MANIFEST>.journal``: the files committed so far, one per line (forked
+workers append theirs)."""
 
 
 @dataclass
 class Claim:
-    """An output a run owns while it works: a folder (``path`` a folder, locked by ``lock``, with
-    the manifest ``owned`` of the files rcm_kin wrote there) or one file (``before``: its size and
-    modification time when claimed, None when it did not exist). ``written``: the files committed."""
+    """An output a run owns while it works: a folder (``path`` a folder, resolved, reached as
+    ``lexical``; locked by ``lock``, with the manifest ``owned`` of the files rcm_kin wrote there)
+    or one file (``before``: its size and modification time when claimed, None when it did not
+    exist). ``written``: the files this process committed; ``tag``: marks the claim's temporaries."""
 
     path: Path
     force: bool
     folder: bool
+    lexical: Path | None = None
     owned: dict = field(default_factory=dict)
     before: tuple | None = None
     lock: int | None = None
     written: set = field(default_factory=set)
-    found: dict = field(default_factory=dict)
+    tag: str = field(default_factory=lambda: secrets.token_hex(3))
 
     def covers(self, final: Path) -> bool:
         """Whether a write to ``final`` (a resolved path) is under this claim."""
@@ -207,6 +215,14 @@ class Claim:
         raise RcmKinError(f"{final} was written by another run while this one worked: "
                           "nothing replaced; choose another output file or add `force`", parameter="force")
 
+    def record(self, final: Path) -> None:
+        """Note ``final`` (resolved) as committed under this claim; a folder's in its journal too,
+        which the run's forked workers share."""
+        self.written.add(final)
+        if self.folder:
+            with open(self.path / (MANIFEST + ".journal"), "a") as fh:
+                fh.write(final.relative_to(self.path).as_posix() + "\n")
+
 
 _CLAIMS: list[Claim] = []
 
@@ -215,7 +231,8 @@ _CLAIMS: list[Claim] = []
 def claim(path: str | Path, *, folder: bool, force: bool = False) -> Iterator[Claim]:
     """Own ``path`` (a folder, created if missing, when ``folder``; else one file) until the block
     ends: see the module's "Owned outputs". A folder another run has claimed is an RcmKinError; a
-    folder the claim created is removed again if nothing was written in it."""
+    folder the claim created is removed again if nothing was written in it. A write under the
+    folder that a link leads out of it is an RcmKinError."""
     path = Path(path)
     if not folder:
         final = final_target(path).resolve()
@@ -234,23 +251,28 @@ def claim(path: str | Path, *, folder: bool, force: bool = False) -> Iterator[Cl
     except OSError:
         os.close(lock)
         raise RcmKinError(f"another run is writing to {path}: wait for it to end or choose another folder") from None
-    c = Claim(path.resolve(), force, True, owned=_read_manifest(path), lock=lock, found=_files(path.resolve()))
+    c = Claim(path.resolve(), force, True, lexical=Path(os.path.abspath(path)), owned=_read_manifest(path), lock=lock)
     try:
         with _open_claim(c):
             yield c
     finally:
-        with contextlib.suppress(OSError):
-            _write_manifest(c)
-            _remove_partials(c.path)
-            if created and not any(c.path.iterdir()):      # a run that wrote nothing leaves no new folder
-                c.path.rmdir()
-        os.close(lock)
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})   # the clean-up ends
+        try:
+            with contextlib.suppress(OSError):
+                _write_manifest(c)
+            _remove_partials(c)
+            with contextlib.suppress(OSError):
+                if created and not any(c.path.iterdir()):      # a run that wrote nothing leaves no new folder
+                    c.path.rmdir()
+            os.close(lock)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
-def _remove_partials(folder: Path) -> None:
-    """Remove the unfinished writes under a claimed folder: a worker process stopped outright
-    leaves its temporary; no other run writes there while the claim's lock is held."""
-    for path in folder.rglob(f".*{PARTIAL}*"):
+def _remove_partials(c: Claim) -> None:
+    """Remove the claim's own unfinished writes (a worker process stopped outright leaves its
+    temporary): those named with its tag, nobody else's."""
+    for path in c.path.rglob(f".*.{c.tag}*{PARTIAL}*"):
         with contextlib.suppress(OSError):
             path.unlink()
 
@@ -265,11 +287,18 @@ def _open_claim(c: Claim) -> Iterator[None]:
 
 
 def _claim_of(final: Path) -> Claim | None:
-    """The innermost open claim covering ``final``, if any."""
+    """The innermost open claim covering ``final``, if any; a path under a claimed folder that a
+    link leads out of it is an RcmKinError."""
     if not _CLAIMS:
         return None
-    resolved = final.resolve()
-    return next((c for c in reversed(_CLAIMS) if c.covers(resolved)), None)
+    resolved, lexical = final.resolve(), Path(os.path.abspath(final))
+    for c in reversed(_CLAIMS):
+        if c.covers(resolved):
+            return c
+        if c.folder and lexical.is_relative_to(c.lexical):
+            raise RcmKinError(f"{final} leads out of the output folder {c.lexical} through a link (to {resolved}): "
+                              "remove the link or choose another output")
+    return None
 
 
 def _signature(path: Path) -> tuple[int, int] | None:
@@ -281,35 +310,28 @@ def _signature(path: Path) -> tuple[int, int] | None:
     return st.st_size, st.st_mtime_ns
 
 
-def _files(folder: Path) -> dict:
-    """Every finished file under ``folder`` but the manifest: relative path -> (size, mtime_ns)."""
-    found = {}
-    for path in folder.rglob("*"):
-        if path.name != MANIFEST and PARTIAL not in path.name and path.is_file() and not path.is_symlink():
-            sig = _signature(path)
-            if sig is not None:
-                found[path.relative_to(folder).as_posix()] = sig
-    return found
-
-
 def _read_manifest(folder: Path) -> dict:
     """The files a claimed folder's manifest says rcm_kin wrote (empty when none or unreadable)."""
     try:
-        owned = json.loads((folder / MANIFEST).read_text()).get("files", {})
+        owned = json.loads(read_bounded(folder / MANIFEST, "manifest")).get("files", {})
     except (OSError, ValueError, AttributeError):
         return {}
     return owned if isinstance(owned, dict) else {}
 
 
 def _write_manifest(c: Claim) -> None:
-    """Record in the folder's manifest every file this run wrote there, beside the earlier runs'
-    still unchanged; also after a failure (the files committed before it are rcm_kin's). Files
-    written by the run's forked workers are those new or changed since the claim (a file that was
-    there and not rcm_kin's could not have been replaced)."""
+    """Record in the folder's manifest every file this run committed there (this process's and its
+    forked workers', from the journal), beside the earlier runs' still unchanged; also after a
+    failure (the files committed before it are rcm_kin's)."""
+    journal = c.path / (MANIFEST + ".journal")
+    try:
+        names = set(journal.read_text().split("\n")) - {""}
+        journal.unlink()
+    except FileNotFoundError:
+        names = set()
+    names |= {final.relative_to(c.path).as_posix() for final in c.written}
     files = {name: sig for name, sig in c.owned.items() if list(_signature(c.path / name) or ()) == sig}
-    for name, sig in _files(c.path).items():
-        if c.path / name in c.written or c.found.get(name) != sig:
-            files[name] = list(sig)
+    files.update({name: list(sig) for name in names if (sig := _signature(c.path / name)) is not None})
     if not files and not (c.path / MANIFEST).exists():
         return
     temporary = _reserve(c.path / MANIFEST)

@@ -121,5 +121,5 @@ def cmd_report(args) -> None:
 
     index = write_report(new_folder(args.out, args.force), args.data, args.map_points, progress=progress_wanted(args))
     files = sorted(str(f.relative_to(index.parent)) for f in Path(index.parent).rglob("*")
-                   if f.is_file() and f.name != MANIFEST)
+                   if f.is_file() and not f.name.startswith(MANIFEST))
     emit(args, {"index": str(index), "files": files}, f"report written: {index} ({len(files)} files)")
