@@ -46,7 +46,7 @@ hostile = st.one_of(
 def robots():
     psm = rk.load_robot("psm")
     return {"psm": psm, "mtm": rk.load_robot("mtm"), "driven": rk.driven_dynamics(psm),
-            "design": rk.driven_dynamics(psm, coulomb=False)}
+            "design": rk.driven_dynamics(psm, coulomb=False), "run": rk.run_experiment("step", "p", duration=0.5)}
 
 
 CALLS = {
@@ -63,6 +63,32 @@ CALLS = {
     "schedule_gains": lambda r, x: rk.schedule_gains(r["design"], x, [0.0, 5.0]),
     "joint_table": lambda r, x: rk.joint_table(x),
     "robot argument": lambda r, x: rk.forward_kinematics(x, np.zeros(7)),
+    "ik robot": lambda r, x: rk.inverse_kinematics(x, [0.01, 0.02, -0.06]),
+    "ik rpy": lambda r, x: rk.inverse_kinematics(r["psm"], [-0.009, 0, -0.073], rpy=x),
+    "ik frame": lambda r, x: rk.inverse_kinematics(r["psm"], [0.01, 0.02, -0.06], frame=x),
+    "torque_map robot": lambda r, x: rk.torque_map(x, {"j2": [0.0, 0.1], "j3": [0.0, 0.1]}),
+    "torque_map q": lambda r, x: rk.torque_map(r["mtm"], {"j2": [0.0, 0.1], "j3": [0.0, 0.1]}, q=x),
+    "gravity_map robot": lambda r, x: rk.gravity_map(x, roll_deg=[0.0], pitch_deg=[0.0]),
+    "gravity_map insertion": lambda r, x: rk.gravity_map(r["psm"], roll_deg=[0.0], pitch_deg=[0.0], insertion=x),
+    "driven_dynamics robot": lambda r, x: rk.driven_dynamics(x),
+    "place_counterweight mass": lambda r, x: rk.place_counterweight(r["mtm"], "counterweight",
+                                                                    {"j2": [0, 0.1], "j3": [0, 0.1]}, mass=x),
+    "place_counterweight max_distance": lambda r, x: rk.place_counterweight(
+        r["mtm"], "counterweight", {"j2": [0, 0.1], "j3": [0, 0.1]}, max_distance=x),
+    "place_counterweight joints": lambda r, x: rk.place_counterweight(r["mtm"], "counterweight",
+                                                                      {"j2": [0, 0.1], "j3": [0, 0.1]}, joints=x),
+    "schedule_gains insertion": lambda r, x: rk.schedule_gains(r["design"], [0.0, 5.0], [0.0, 5.0], insertion=x),
+    "schedule_gains ramp": lambda r, x: rk.schedule_gains(r["design"], [0.0, 5.0], [0.0, 5.0],
+                                                          friction_ramp_deg_s=x),
+    "schedule_gains model": lambda r, x: rk.schedule_gains(x, [0.0, 5.0], [0.0, 5.0]),
+    "run_experiment duration": lambda r, x: rk.run_experiment("step", "p", duration=x),
+    "run_experiment seed": lambda r, x: rk.run_experiment("step", "p", duration=0.5, seed=x),
+    "tracking_metrics": lambda r, x: rk.tracking_metrics(x),
+    "tracking_metrics skip": lambda r, x: rk.tracking_metrics(r["run"], skip=x),
+    "simulate": lambda r, x: rk.simulate(lambda state, u: state, x, x),
+    "load_drive_parameters": lambda r, x: rk.load_drive_parameters(x) if not isinstance(x, str) else None,
+    "write_report map_points": lambda r, x: rk.write_report(os.devnull, map_points=x) if not (
+        isinstance(x, int) and not isinstance(x, bool) and 2 <= x <= 1001) else None,
 }
 
 

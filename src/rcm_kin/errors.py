@@ -9,6 +9,7 @@ known). Warnings go through :mod:`warnings` (never printed by the library): the 
 distinct one as a line ``warning: <message>`` after a successful run.
 """
 
+import math
 import sys
 import tomllib
 import warnings
@@ -18,7 +19,7 @@ import numpy as np
 
 
 class RcmKinError(ValueError):
-    """A request rcm_kin cannot satisfy; the message says what was wrong and what to do.
+    """A request rcm_kin cannot satisfy; the message (one line) says what was wrong and what to do.
 
     ``parameter``: the name of the function parameter at fault (a tuple when several are), or
     None. The CLI prints it as one line ``error: <message>`` (the parameter named by its flag)
@@ -26,7 +27,7 @@ class RcmKinError(ValueError):
     """
 
     def __init__(self, message: str = "", *, parameter: str | tuple[str, ...] | None = None):
-        super().__init__(message)
+        super().__init__(" ".join(str(message).split()))      # one line, whatever a shown value held
         self.parameter = parameter
 
     @property
@@ -199,4 +200,20 @@ def as_numbers(value, parameter: str, what: str) -> np.ndarray:
     try:
         return np.asarray(value, dtype=float)
     except (TypeError, ValueError, OverflowError):
-        raise RcmKinError(f"`{parameter}` must be {what}, got {str(value)[:60]!r}", parameter=parameter) from None
+        raise RcmKinError(f"`{parameter}` must be {what}, got {' '.join(str(value).split())[:60]!r}",
+                          parameter=parameter) from None
+
+
+def as_number(value, parameter: str, unit: str, low: float, high: float, *, low_open: bool = False) -> float:
+    """``value`` as a finite float in ``[low, high]`` (``(low, high]`` when ``low_open``), or an
+    RcmKinError naming ``parameter`` and the range in ``unit``."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        number = math.nan
+    if isinstance(value, bool) or not math.isfinite(number) or number > high or number < low \
+            or (low_open and number == low):
+        bracket = "(" if low_open else "["
+        raise RcmKinError(f"`{parameter}` is a number in {bracket}{low:g}, {high:g}] {unit}, got "
+                          f"{' '.join(str(value).split())[:40]}", parameter=parameter)
+    return number

@@ -30,7 +30,8 @@ from rcm_kin.control.friction import (
 )
 from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.weights import Weights
-from rcm_kin.errors import RcmKinError, as_numbers
+from rcm_kin.dynamics.state_space import check_model
+from rcm_kin.errors import RcmKinError, WorkLimitError, as_number, as_numbers
 from rcm_kin.firmware_rules import bilinear
 from rcm_kin.hardware import HOME_INSERTION, INSERTION_KP
 from rcm_kin.model import load_robot
@@ -41,6 +42,8 @@ if TYPE_CHECKING:
 THESIS_ROLL_DEG = (-20.0, 0.0, 20.0)
 THESIS_PITCH_DEG = (-15.0, 0.0, 15.0)
 ROLL, PITCH, INSERTION = 0, 1, 2
+MAX_SCHEDULE_POSES = 201 * 201     # grid poses of one schedule (the CLI's --check-points bound, squared)
+MAX_RAMP_DEG_S = 1000.0            # deg/s: a friction-compensation ramp (default 2), far above any joint speed
 
 
 def axis_model(A: np.ndarray, B: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
@@ -167,12 +170,21 @@ def schedule_gains(model: DrivenDynamics, roll_deg, pitch_deg, insertion: float 
     """Design the gain tables on a roll x pitch grid (degrees) at one insertion (m). The schedule
     also carries the friction-compensation feedforward of the model's sliding Coulomb friction
     (the Coulomb level the design leaves out), ramped over ``friction_ramp_deg_s`` (deg/s)."""
-    if model.coulomb:
+    if check_model(model).coulomb:
         raise RcmKinError("design on the model without Coulomb friction: driven_dynamics(..., coulomb=False)")
+    if weights is not None and not isinstance(weights, Weights):
+        raise RcmKinError(f"`weights` is a Weights, got {type(weights).__name__}", parameter="weights")
     weights = weights or Weights()
-    friction = friction_compensation(model.drive, friction_ramp_deg_s)
+    ramp = as_number(friction_ramp_deg_s, "friction_ramp_deg_s", "deg/s", 0.0, MAX_RAMP_DEG_S, low_open=True)
+    friction = friction_compensation(model.drive, ramp)
+    insertion = as_number(insertion, "insertion", "m", model.lower[INSERTION], model.upper[INSERTION])
     roll_deg = check_grid(roll_deg, "roll", model.lower[ROLL], model.upper[ROLL])
     pitch_deg = check_grid(pitch_deg, "pitch", model.lower[PITCH], model.upper[PITCH])
+    if roll_deg.size * pitch_deg.size > MAX_SCHEDULE_POSES:
+        raise WorkLimitError(f"a gain schedule of {roll_deg.size} x {pitch_deg.size} poses: at most "
+                             f"{MAX_SCHEDULE_POSES:,} (201 x 201, about a minute of design)",
+                             requested=roll_deg.size * pitch_deg.size, limit=MAX_SCHEDULE_POSES,
+                             parameter=("roll_deg", "pitch_deg"))
     P, R = np.meshgrid(pitch_deg, roll_deg, indexing="ij")
     Q = np.column_stack([np.radians(R.ravel()), np.radians(P.ravel()), np.full(R.size, insertion)])
     grid = linearize_grid(model, Q)

@@ -130,6 +130,8 @@ def load_drive_parameters(path: str | Path | None = None) -> DriveParameters:
     :func:`check_drive` puts them in the robot's actuated order. The PSM's ``pwm_limit`` is the firmware's
     (:data:`rcm_kin.hardware.PWM_LIMIT`), any other robot's is read from each joint table. Every
     value is checked against its unit and range (:mod:`rcm_kin.dynamics.drive_schema`)."""
+    if path is not None and not isinstance(path, (str, Path)):
+        raise RcmKinError(f"`path` is a drive parameter file's path, got {type(path).__name__}", parameter="path")
     path = Path(path) if path is not None else DEFAULT_PARAMETERS
     try:
         text = read_text(path, "drive parameter file")

@@ -33,6 +33,7 @@ from rcm_kin.hardware import DRIVER_PWM_RANGE
 from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.masses import require_masses
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
+from rcm_kin.model.robot import check_robot
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
 from rcm_kin.symbolic.tree import tree_joints, world_placements
 
@@ -145,6 +146,7 @@ def driven_dynamics(robot: Robot, params: DriveParameters | None = None, q_fixed
     Coulomb friction out, e.g. for controller design (its slope at rest, ``F_c / v_c``, is a
     property of the smoothing only).
     """
+    robot = check_robot(robot)
     params = resolve_drive(robot, params)
     joints = modelled_joints(robot, params, joints)
     require_masses(robot, "its dynamics")
@@ -230,15 +232,20 @@ def holding_pwm(model: DrivenDynamics, q, *, allow_outside_limits: bool = False)
     return np.array(model.gravity(q)).ravel() / model.drive.input_gain
 
 
+def check_model(model, parameter: str = "model") -> DrivenDynamics:
+    """``model`` itself when it is a :class:`DrivenDynamics`, else an RcmKinError naming ``parameter``."""
+    if not isinstance(model, DrivenDynamics):
+        raise RcmKinError(f"`{parameter}` must be a driven-joint model (rk.driven_dynamics(robot)), got "
+                          f"{type(model).__name__}", parameter=parameter)
+    return model
+
+
 def check_pose(model: DrivenDynamics, q, *, allow_outside_limits: bool = False, parameter: str = "q") -> np.ndarray:
     """``q`` as the modelled joints' pose (n,) (rad, m): numbers, finite, of the model's size and
     within its joints' limits unless ``allow_outside_limits``; else an RcmKinError naming
     ``parameter`` (a :class:`~rcm_kin.errors.JointLimitError` for the limits), as
     :meth:`Robot.check_pose` for a robot's pose."""
-    if not isinstance(model, DrivenDynamics):
-        raise RcmKinError(f"`model` must be a driven-joint model (rk.driven_dynamics(robot)), got "
-                          f"{type(model).__name__}", parameter="model")
-    n = len(model.joints)
+    n = len(check_model(model).joints)
     try:
         q = np.asarray(q, dtype=float).ravel()
     except (TypeError, ValueError):

@@ -25,6 +25,7 @@ from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.kinematics.numeric_ik import solve_ik
 from rcm_kin.kinematics.psm_ik import ARM, WRIST, shaft_tip_applies, shaft_tip_ik, tool_pose_applies, tool_pose_ik
 from rcm_kin.kinematics.rcm_ik import rcm_chain, rcm_ik
+from rcm_kin.model.robot import check_robot
 
 CLOSED_FORM = "closed-form RCM"
 NUMERIC = "damped least squares"
@@ -118,8 +119,11 @@ def inverse_kinematics(robot, position, rpy=None, frame: str | None = None, q0=N
     Without ``frame`` and ``rpy`` a robot with ``[rcm]`` places its shaft frame in closed form.
     Unreachable targets and bad input raise a one-line ``RcmKinError``.
     """
+    robot = check_robot(robot)
     position = _target(position)
     rotation = None if rpy is None else _rotation(rpy)
+    if frame is not None and not isinstance(frame, str):
+        raise RcmKinError(f"`frame` is a frame's name, got {type(frame).__name__}", parameter="frame")
     if frame is not None and not robot.reduced.existFrame(frame):
         raise RcmKinError(f"{robot.name} has no frame '{frame}' (`frame`); frames of interest: "
                           f"{', '.join(robot.description.frames)}", parameter="frame")

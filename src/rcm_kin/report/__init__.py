@@ -30,7 +30,7 @@ from pathlib import Path
 
 from rcm_kin.atomic import write_text
 from rcm_kin.errors import RcmKinError, output_folder, recording_warnings, reissue
-from rcm_kin.parallel import process_pool
+from rcm_kin.parallel import check_workers, process_pool
 
 
 def write_report(out: str | Path, data: str | Path | None = None, map_points: int = 61,
@@ -47,9 +47,14 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     from rcm_kin.parallel import machine_workers
     from rcm_kin.statics.maps import check_map_size
 
-    if map_points < 2:
-        raise RcmKinError("the effort maps need at least 2 points per axis")
+    if not isinstance(out, (str, Path)) or not str(out).strip():
+        raise RcmKinError(f"`out` is a folder's path, got {str(out)[:40]!r}", parameter="out")
+    if isinstance(map_points, bool) or not isinstance(map_points, int) or map_points < 2:
+        raise RcmKinError(f"the effort maps need a whole number of at least 2 points per axis, got {map_points!r}",
+                          parameter="map_points")
     check_map_size(map_points**2)
+    if workers is not None:
+        check_workers(workers)
     if data is not None:
         calibration_logs(data)           # the measured logs are there before minutes of work
     out = output_folder(out)

@@ -18,7 +18,7 @@ from rcm_kin.control.schedule_cache import cached_schedule, schedule_key
 from rcm_kin.control.schedule_file import read_schedule_file
 from rcm_kin.dynamics.drive import DriveParameters, load_drive_parameters
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics, holding_pwm
-from rcm_kin.errors import JointLimitError, RcmKinError
+from rcm_kin.errors import JointLimitError, RcmKinError, as_number
 from rcm_kin.model import load_robot
 from rcm_kin.simulation.compiled_loop import run_closed_loop
 from rcm_kin.simulation.controllers import MODEL_FREE, TUNED, Controller, Hold, StateFeedbackController, make_controller
@@ -159,6 +159,15 @@ def run_experiment(experiment: str, controller: str, duration: float | None = No
     give the same result (tests/simulation/test_compiled_loop.py, tests/simulation/test_simulation.py).
     The run starts from the steady hold of the first pose (:func:`start_hold`): integrals charged
     with its holding PWM. ``gains``: the gain file of the ``tuned`` controller (:func:`named_controller`)."""
+    if settings is not None and not isinstance(settings, FirmwareSettings):
+        raise RcmKinError(f"`settings` is a FirmwareSettings, got {type(settings).__name__}", parameter="settings")
+    if params is not None and not isinstance(params, DriveParameters):
+        raise RcmKinError(f"`params` is a DriveParameters (rk.load_drive_parameters), got {type(params).__name__}",
+                          parameter="params")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise RcmKinError(f"`seed` is a whole number, at least 0, got {seed!r}", parameter="seed")
+    if duration is not None:
+        duration = as_number(duration, "duration", "s", 0.0, float("inf"), low_open=True)
     settings, params = settings or FirmwareSettings(), params or load_drive_parameters()
     law = named_controller(controller, params, gains)       # a designed schedule takes about 1 s
     plant = _built_plant(params, settings.period, 4, fast)

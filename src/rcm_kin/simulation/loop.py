@@ -20,7 +20,7 @@ from typing import Callable
 import numpy as np
 from tqdm import tqdm
 
-from rcm_kin.errors import NonFiniteResultError, RcmKinError
+from rcm_kin.errors import NonFiniteResultError, RcmKinError, as_number
 from rcm_kin.simulation.controllers import Controller, Hold, Sample
 from rcm_kin.simulation.firmware import FirmwareSettings, encoder_reading, firmware_velocity, sent_pwm
 from rcm_kin.simulation.references import Reference
@@ -78,6 +78,12 @@ def simulate(step: Callable[[np.ndarray, np.ndarray], np.ndarray], controller: C
     PWM saturated at the limits. A state that leaves the finite numbers raises
     :class:`~rcm_kin.errors.NonFiniteResultError` (the simulation diverged).
     Deterministic for a given ``seed`` (which only drives the optional encoder noise)."""
+    for value, kind, name in ((controller, Controller, "controller"), (reference, Reference, "reference"),
+                              (settings or FirmwareSettings(), FirmwareSettings, "settings")):
+        if not isinstance(value, kind):
+            raise RcmKinError(f"`{name}` is a {kind.__name__}, got {type(value).__name__}", parameter=name)
+    if not callable(step):
+        raise RcmKinError(f"`step` is a function step(x, u) -> x, got {type(step).__name__}", parameter="step")
     settings = settings or FirmwareSettings()
     check_run(reference, settings, settle)
     rng = np.random.default_rng(seed)
@@ -125,9 +131,14 @@ class AxisMetrics:
 def tracking_metrics(result: SimulationResult, skip: float = 0.0) -> dict[str, AxisMetrics]:
     """Per axis (roll, pitch): error statistics of ``reference - measured`` and the effort, from
     ``skip`` s on (e.g. past the start of a sinusoid that begins at full speed)."""
+    if not isinstance(result, SimulationResult):
+        raise RcmKinError(f"`result` is a SimulationResult (rk.simulate, rk.run_experiment), got "
+                          f"{type(result).__name__}", parameter="result")
+    skip = as_number(skip, "skip", "s", 0.0, float(result.time[-1]))
     keep = result.time >= skip
-    if not (np.isfinite(skip) and skip >= 0 and keep.any()):
-        raise RcmKinError(f"the statistics start within the run (0 <= skip < {result.time[-1]:g} s), got {skip}")
+    if not keep.any():
+        raise RcmKinError(f"the statistics start within the run (0 <= skip < {result.time[-1]:g} s), got {skip}",
+                          parameter="skip")
     out = {}
     for i, axis in enumerate(AXES):
         e, u = result.error[keep, i], result.pwm[keep, i]

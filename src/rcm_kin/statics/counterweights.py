@@ -24,15 +24,19 @@ import pinocchio as pin
 from scipy.optimize import lsq_linear
 
 from rcm_kin.dynamics.drive import DriveParameters, model_label, resolve_drive
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, as_number
 from rcm_kin.hardware import DPM_COUNTERWEIGHT, HOME_INSERTION, MAIN_COUNTERWEIGHT
 from rcm_kin.model import load_robot
 from rcm_kin.model.gravity import gravity_batch, point_mass_gravity_batch
+from rcm_kin.model.robot import check_robot
 from rcm_kin.statics.holding import check_actuated, default_pose, grid_axes, with_counterweights
 from rcm_kin.statics.maps import check_map_size
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
+
+MAX_MASS = 1000.0        # kg: a counterweight the designs consider (the PSM's are 0.5-2.3 kg)
+MAX_DISTANCE = 1.0       # m: the largest placement bound per axis (the default 0.3 is the PSM's reach)
 
 
 @dataclass(frozen=True)
@@ -180,6 +184,12 @@ def place_counterweight(robot: Robot, link: str, grid: dict, q=None, mass: float
     joint, in N m) over ``grid`` ({joint: values, rad or m}, two actuated joints; the others at ``q``).
     Gravity is affine in the position: a linear least-squares problem (minimum-norm where the grid
     leaves a direction free), bounded by ``max_distance`` (m) per axis."""
+    robot = check_robot(robot)
+    max_distance = as_number(max_distance, "max_distance", "m", 0.0, MAX_DISTANCE, low_open=True)
+    if joints is not None and (isinstance(joints, str) or not _items(joints)
+                               or not all(isinstance(j, str) for j in _items(joints))):
+        raise RcmKinError(f"`joints` is a non-empty list of joint names, got {' '.join(str(joints).split())[:40]}",
+                          parameter="joints")
     if link not in robot.description.counterweights:
         raise RcmKinError(f"{link} is not a counterweight of {robot.name} (its sidecar's counterweights: "
                           f"{', '.join(robot.description.counterweights) or 'none'})", parameter="link")
@@ -201,7 +211,7 @@ def place_counterweight(robot: Robot, link: str, grid: dict, q=None, mass: float
     mount = mount_link(full, link)
     j = full.tree.frames[full.tree.getFrameId(mount)].parentJoint
     built_mass = full.tree.inertias[j].mass - without.tree.inertias[j].mass
-    mass = built_mass if mass is None else float(mass)
+    mass = built_mass if mass is None else as_number(mass, "mass", "kg", 0.0, MAX_MASS, low_open=True)
     if not mass > 0:
         raise RcmKinError(f"the counterweight {link} needs a positive mass (kg), got {mass:g}", parameter="mass")
     built = _as_built(full, without, mount, j, built_mass)
@@ -223,6 +233,13 @@ def place_counterweight(robot: Robot, link: str, grid: dict, q=None, mass: float
                                   "PWM counts" if "PWM counts" in units else "N m", rms(residual),
                                   np.abs(residual).max(axis=0), rms(effort(full)), rms(base), int(rank),
                                   model_label(params), units)
+
+
+def _items(values) -> list:
+    try:
+        return list(values)
+    except TypeError:
+        return [values]
 
 
 def _weighing(robot: Robot, params, joints) -> tuple[tuple[str, ...], np.ndarray, tuple[str, ...]]:

@@ -31,8 +31,9 @@ from rcm_kin.dynamics.state_space import driven_gravity_function
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model.loading import build_robot
 from rcm_kin.model.masses import require_masses
+from rcm_kin.model.robot import check_robot
 from rcm_kin.plotting import torque_heatmaps
-from rcm_kin.statics.holding_band import band_columns
+from rcm_kin.statics.holding_band import band_columns, check_level
 from rcm_kin.statics.maps import HoldingEffort, check_map_size, drive_effort_blocks
 from rcm_kin.symbolic.compiled import map_points
 from rcm_kin.symbolic.points import CompiledPoints, compiled_points
@@ -215,6 +216,9 @@ def torque_map(robot: Robot, grid: dict, q=None, drive=None, counterweights: boo
     ``counterweights=False``: without the counterweights' mass. ``band``: a level in (0, 1), the map
     gains its drive's holding band as table columns (:func:`rcm_kin.statics.holding_band.band_columns`;
     a drive is then required)."""
+    robot = check_robot(robot)
+    if band is not None:
+        check_level(band, "band")
     names, values = grid_axes(robot, grid)
     if names[0] == names[1]:
         raise RcmKinError(f"the grid names {names[0]} twice: give two different joints", parameter="grid")

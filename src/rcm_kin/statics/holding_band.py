@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 DEFAULT_LEVEL = 0.9
 
 
-def check_level(level) -> float:
+def check_level(level, parameter: str = "level") -> float:
     """A band's level: a number strictly between 0 and 1, or a one-line error (the one rule of every
     band: holding efforts here, predictions in :mod:`rcm_kin.identification.bands`)."""
     try:
@@ -45,10 +45,10 @@ def check_level(level) -> float:
     except (TypeError, ValueError):
         raise RcmKinError("the band level must be a number strictly between 0 and 1 (e.g. 0.9), got "
                           f"{str(level)[:40]!r}",
-                          parameter="level") from None
+                          parameter=parameter) from None
     if not 0.0 < value < 1.0:
         raise RcmKinError(f"the band level must be strictly between 0 and 1 (e.g. 0.9), got {value:g}",
-                          parameter="level")
+                          parameter=parameter)
     return value
 
 

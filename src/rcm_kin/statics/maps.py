@@ -176,6 +176,7 @@ def gravity_map(robot: Robot, drive=None, roll_deg=DEFAULT_GRID_DEG, pitch_deg=D
     path of a drive file), checked against the robot (:func:`check_drive`); default: the robot's
     sidecar drive, as :func:`holding_effort` (:func:`resolve_drive`). The map is in voltage and PWM,
     so a robot without a drive is an error (its torques: :func:`rcm_kin.statics.torque_map`)."""
+    robot = check_robot(robot)
     missing = [j for j in DRIVEN if j not in robot.actuated]
     if missing:
         raise RcmKinError(f"a holding-effort map is over the driven joints {', '.join(DRIVEN)}; {robot.name} has no "
@@ -183,13 +184,15 @@ def gravity_map(robot: Robot, drive=None, roll_deg=DEFAULT_GRID_DEG, pitch_deg=D
     drive = map_drive(robot, drive)
     roll_deg, pitch_deg, insertion = (_grid(x, name) for x, name in
                                       ((roll_deg, "roll_deg"), (pitch_deg, "pitch_deg"), (insertion, "insertion")))
-    for name, values, unit in (("roll", np.radians(roll_deg), "deg"), ("pitch", np.radians(pitch_deg), "deg"),
-                               ("insertion", insertion, "m")):
+    for name, values, unit, parameter in (("roll", np.radians(roll_deg), "deg", "roll_deg"),
+                                          ("pitch", np.radians(pitch_deg), "deg", "pitch_deg"),
+                                          ("insertion", insertion, "m", "insertion")):
         i = robot.actuated.index(name)
         lo, hi = robot.lower[i], robot.upper[i]
         if values.min() < lo - 1e-12 or values.max() > hi + 1e-12:
             shown = (np.degrees([lo, hi]) if unit == "deg" else [lo, hi])
-            raise RcmKinError(f"{name} range outside the joint limits [{shown[0]:g}, {shown[1]:g}] {unit}")
+            raise RcmKinError(f"{name} range outside the joint limits [{shown[0]:g}, {shown[1]:g}] {unit}",
+                              parameter=parameter)
     check_map_size(roll_deg.size * pitch_deg.size * insertion.size)
     P, R, I = np.meshgrid(np.radians(pitch_deg), np.radians(roll_deg), insertion, indexing="ij")
     Q = np.column_stack([R.ravel(), P.ravel(), I.ravel()])

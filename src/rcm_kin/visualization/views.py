@@ -26,6 +26,7 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.kinematics.fk import frame_placement
 from rcm_kin.model.geometry import visual_geometry
 from rcm_kin.model.reduced import tree_configuration
+from rcm_kin.model.robot import check_robot
 from rcm_kin.visualization.camera import SideCamera, framing, set_camera, view_points
 from rcm_kin.visualization.offline import OfflineWindow
 
@@ -38,7 +39,7 @@ def robot_view(robot: Robot, window=None, frames: tuple[str, ...] = (), package_
     live ``meshcat.Visualizer().window``), showing ``frames`` (names of the robot's frames of
     interest) as axis triads; ``package_dirs`` ({NAME: folder}) finds ``package://`` meshes, as
     for :func:`~rcm_kin.model.geometry.visual_geometry`."""
-    visual = visual_geometry(robot, package_dirs)
+    visual = visual_geometry(check_robot(robot), package_dirs)
     viz = MeshcatVisualizer(robot.tree, pin.GeometryModel(), visual)
     viz.initViewer(viewer=meshcat.Visualizer(window=window or OfflineWindow(robot.name)))
     viz.loadViewerModel(rootNodeName=robot.name)
@@ -105,6 +106,8 @@ def write_html(viz: MeshcatVisualizer, path: str | Path, camera: SideCamera | No
     by default the camera already recorded in the view (:func:`animate` records one), else the
     side camera framing the pose the view shows (:func:`~rcm_kin.visualization.camera.side_camera`'s).
     (A live view's page is the meshcat server's, on meshcat's default camera.)"""
+    if not isinstance(viz, MeshcatVisualizer):
+        raise RcmKinError(f"`viz` is a view (rk.robot_view), got {type(viz).__name__}", parameter="viz")
     path = Path(path)
     window = viz.viewer.window
     if isinstance(window, OfflineWindow) and (camera is not None or window.camera_target is None):
