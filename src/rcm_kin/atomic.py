@@ -145,9 +145,10 @@ def stop_writes(reason: str) -> None:
 
 
 def _commit(temporary: Path, final: Path) -> None:
-    """Rename ``temporary`` onto ``final`` (an existing file's permissions kept), then fsync the
-    folder; under an open :func:`claim`, only where the claim admits it (:meth:`Claim.admit`);
-    never after :func:`stop_writes`."""
+    """Rename ``temporary`` onto ``final`` (an existing file's permissions kept; the folder is not
+    fsynced: the rename is atomic for every process, and after a power cut the file is the old or
+    the new one, whole, as its data was fsynced first); under an open :func:`claim`, only where the
+    claim admits it (:meth:`Claim.admit`); never after :func:`stop_writes`."""
     if _STOPPED:
         raise RcmKinError(f"{final} not written: {_STOPPED[0]}")
     claim = _claim_of(final)
@@ -160,12 +161,6 @@ def _commit(temporary: Path, final: Path) -> None:
         os.replace(temporary, final)
     if claim is not None:
         claim.record(final.resolve())
-    with contextlib.suppress(OSError):      # not every system opens a folder (Windows): the rename stands
-        fd = os.open(final.parent, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
 
 
 MANIFEST = ".rcm-kin-outputs.json"
