@@ -210,7 +210,7 @@ def test_simulate_cli_contract(capsys):
     (["--experiment", "sine", "--controller", "p", "--rate", "-5"], "--rate"),
     (["--experiment", "sine", "--controller", "p", "--duration", "0"], "duration"),
     (["--experiment", "target", "--controller", "p", "--trajectory", "nowhere.csv"], "cannot read"),
-    (["--experiment", "step", "--controller", "p", "--skip", "5"], "statistics start"),
+    (["--experiment", "step", "--controller", "p", "--skip", "5"], "--skip is a number in [0, 3] s, got 5"),
 ])
 def test_simulate_cli_errors_are_one_line(capsys, argv, message):
     assert main(["simulate", "psm", *argv]) == 2
