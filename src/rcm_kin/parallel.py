@@ -18,7 +18,7 @@ import multiprocessing
 import os
 import signal
 import sys
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from typing import Callable, Iterator, Sequence
 
@@ -187,11 +187,7 @@ def map_batches(client, function: Callable, batches: list, progress: bool = True
             bar.update()
             if on_batch:
                 on_batch(done)
-    results = []
-    for value, raised in client.gather(futures):      # the workers' warnings, raised here
-        reissue(raised)
-        results.append(value)
-    return results
+    return _reissued(client.gather(futures))      # the workers' warnings, raised here
 
 
 def map_local(function: Callable, batches: list, workers: int, progress: bool = True, desc: str = "batches",
@@ -199,8 +195,6 @@ def map_local(function: Callable, batches: list, workers: int, progress: bool = 
     """:func:`map_batches` without a cluster: ``function(batch, **shared)`` for every batch on a pool
     of ``workers`` forked processes (in this process for one worker or one batch); the results in
     batch order, the workers' warnings raised here, the first error raised here."""
-    from concurrent.futures import as_completed
-
     with tqdm(total=len(batches), desc=desc, unit="batch", file=sys.stderr, disable=not progress) as bar:
         def tick(done: int) -> None:
             bar.update()
@@ -219,6 +213,11 @@ def map_local(function: Callable, batches: list, workers: int, progress: bool = 
                     future.result()
                     tick(done)
                 outcomes = [future.result() for future in futures]
+    return _reissued(outcomes)
+
+
+def _reissued(outcomes) -> list:
+    """The values of ``(value, warnings)`` outcomes (:func:`recording_warnings`'), their warnings raised here."""
     results = []
     for value, raised in outcomes:
         reissue(raised)

@@ -3,6 +3,8 @@ run on Dask: an embedded local cluster, or ``--scheduler tcp://HOST:PORT``."""
 
 from __future__ import annotations
 
+import contextlib
+
 from rcm_kin.cli.common import (
     RAW,
     add_json,
@@ -75,7 +77,7 @@ def add_robustness(sub) -> None:
 
 def cmd_robustness(args) -> None:
     from rcm_kin.dynamics.drive import load_drive_parameters
-    from rcm_kin.parallel import LOCAL_ITEMS, dask_client
+    from rcm_kin.parallel import dask_client
     from rcm_kin.robustness.execution import run_robustness
     from rcm_kin.robustness.sampling import drive_train_sources, read_standard_errors, uncertain_parameters
     from rcm_kin.robustness.task import Study
@@ -90,13 +92,11 @@ def cmd_robustness(args) -> None:
                   args.experiment, args.duration, args.skip)
     check_robustness(study, args.samples)
     out = new_folder(args.out, args.force) if args.out else None
-    if args.scheduler is None and args.samples <= LOCAL_ITEMS:    # a small run: no cluster to start
-        result = run_robustness(study, args.samples, args.seed, None, args.batch_size, progress=progress_wanted(args),
+    # without --scheduler, run_robustness chooses: a pool of forked processes for a small run, else an
+    # embedded cluster of --workers
+    with dask_client(args.scheduler) if args.scheduler else contextlib.nullcontext() as client:
+        result = run_robustness(study, args.samples, args.seed, client, args.batch_size, progress=progress_wanted(args),
                                 workers=args.workers)
-    else:
-        with dask_client(args.scheduler, args.workers) as client:
-            result = run_robustness(study, args.samples, args.seed, client, args.batch_size,
-                                    progress=progress_wanted(args))
     lines = [f"{args.experiment}: {result.samples} samples (seed {args.seed}); max error deg p5/median/p95/worst"]
     for name, c in result.controllers.items():
         cells = [f"{axis} " + "/".join(f"{v:.2f}" for v in vars(a.max_error_deg).values())

@@ -28,12 +28,12 @@ import casadi as ca
 import numpy as np
 
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, model_label, resolve_drive
-from rcm_kin.errors import JointLimitError, RcmKinError
+from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import DRIVER_PWM_RANGE
 from rcm_kin.model.gravity import offset_moments
 from rcm_kin.model.masses import require_masses
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
-from rcm_kin.model.robot import check_robot
+from rcm_kin.model.robot import check_robot, check_within_limits
 from rcm_kin.symbolic.closed_chain import closed_chain_rnea, linear_closure
 from rcm_kin.symbolic.tree import tree_joints, world_placements
 
@@ -254,15 +254,10 @@ def check_pose(model: DrivenDynamics, q, *, allow_outside_limits: bool = False, 
     if q.shape != (n,) or not np.all(np.isfinite(q)):
         raise RcmKinError(f"a pose is {n} finite numbers ({', '.join(model.joints)}), got {q.tolist()[:8]}",
                           parameter=parameter)
-    outside = (q < model.lower - 1e-9) | (q > model.upper + 1e-9)
-    if np.any(outside) and not allow_outside_limits:
-        bad = np.flatnonzero(outside)
-        shown = lambda i, x: f"{np.degrees(x):.6g} deg" if model.units[i] == "rad" else f"{x:.6g} m"  # noqa: E731
-        raise JointLimitError("outside the joint limits: " + "; ".join(
-            f"{model.joints[i]} {shown(i, q[i])} not in [{shown(i, model.lower[i])}, {shown(i, model.upper[i])}]"
-            for i in bad), joints=tuple(model.joints[i] for i in bad), values=q[bad].copy(),
-            lower=model.lower[bad].copy(), upper=model.upper[bad].copy(), parameter=parameter)
-    return q
+    if allow_outside_limits:
+        return q
+    return check_within_limits(q, model.joints, model.lower, model.upper, lambda i: model.units[i] == "rad",
+                               parameter=parameter)
 
 
 def check_state(x, u, model: DrivenDynamics | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -51,7 +51,7 @@ import numpy as np
 
 from rcm_kin import firmware_rules
 from rcm_kin.dynamics.axis_friction import MAX_ELEMENTS, AxisFriction
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, as_numbers
 from rcm_kin.firmware_rules import quantise, saturate
 from rcm_kin.hardware import DRIVER_PWM_RANGE
 
@@ -324,10 +324,7 @@ def simulate_axis(friction: AxisFriction, plant: AxisPlant, pwm: np.ndarray, per
 
 def _checked_pwm(pwm) -> np.ndarray:
     """``pwm`` as a 1-D float array of finite counts within the driver's range, or an RcmKinError."""
-    try:
-        pwm = np.asarray(pwm, dtype=float)
-    except (TypeError, ValueError):
-        raise RcmKinError(f"`pwm` must be PWM counts, got {str(pwm)[:60]!r}", parameter="pwm") from None
+    pwm = as_numbers(pwm, "pwm", "PWM counts")
     if pwm.ndim != 1 or not np.all(np.isfinite(pwm)) or np.any(np.abs(pwm) > DRIVER_PWM_RANGE):
         largest = np.nanmax(np.abs(pwm), initial=0)
         raise RcmKinError(f"`pwm` must be a 1-D series of finite counts within +-{DRIVER_PWM_RANGE:.0f} (the "

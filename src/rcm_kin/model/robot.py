@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -161,21 +162,8 @@ class Robot:
         """``q`` (actuated, rad or m) unchanged, or a clear error naming every joint outside its limits
         (a :class:`~rcm_kin.errors.JointLimitError` carrying their names, values and limits).
         The one joint-limit policy of rcm_kin: poses outside the limits are refused, not computed."""
-        q = np.asarray(q, dtype=float)
-        if q.ndim == 1 and all(lo - tol <= x <= hi + tol for x, lo, hi in
-                               zip(q.tolist(), self.lower.tolist(), self.upper.tolist())):
-            return q                        # the common case in plain floats (NumPy's calls cost more on 7 values)
-        outside = (q < self.lower - tol) | (q > self.upper + tol)
-        if np.any(outside):
-            shown = lambda i, x: (f"{np.degrees(x):.6g} deg" if self.joint_kind(self.actuated[i]) == "revolute"  # noqa: E731
-                                  else f"{x:.6g} m")
-            bad = np.flatnonzero(outside)
-            raise JointLimitError("outside the joint limits: " + "; ".join(
-                f"{self.actuated[i]} {shown(i, q[i])} not in [{shown(i, self.lower[i])}, {shown(i, self.upper[i])}]"
-                for i in bad),
-                joints=tuple(self.actuated[i] for i in bad), values=q[bad].copy(),
-                lower=np.asarray(self.lower)[bad].copy(), upper=np.asarray(self.upper)[bad].copy(), parameter=parameter)
-        return q
+        return check_within_limits(q, self.actuated, self.lower, self.upper,
+                                   lambda i: self.joint_kind(self.actuated[i]) == "revolute", tol, parameter)
 
     def check_pose(self, q, *, allow_outside_limits: bool = False, parameter: str = "q") -> np.ndarray:
         """The public functions' check of a pose argument (the API's policy): ``q`` as the actuated
@@ -193,3 +181,25 @@ def check_robot(robot, parameter: str = "robot") -> Robot:
         return robot
     hint = f"rk.load_robot({robot!r})" if isinstance(robot, str) else "rk.load_robot(name or path)"
     raise RcmKinError(f"`{parameter}` must be a loaded robot ({hint}), got {type(robot).__name__}", parameter=parameter)
+
+
+def check_within_limits(q, joints, lower, upper, revolute: Callable[[int], bool], tol: float = 1e-9,
+                        parameter: str = "q") -> np.ndarray:
+    """``q`` (rad or m, one value per joint of ``joints``) unchanged, or the one joint-limit error of
+    rcm_kin: a :class:`~rcm_kin.errors.JointLimitError` naming ``parameter`` and every joint outside
+    ``[lower, upper]`` (degrees where ``revolute(i)``, metres for the others), carrying their
+    names, values and limits. A robot's pose (:meth:`Robot.check_limits`) and a driven-joint
+    model's (:func:`rcm_kin.dynamics.state_space.check_pose`) are both checked here."""
+    q = np.asarray(q, dtype=float)
+    lower, upper = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    if q.ndim == 1 and all(lo - tol <= x <= hi + tol for x, lo, hi in zip(q.tolist(), lower.tolist(), upper.tolist())):
+        return q                            # the common case in plain floats (NumPy's calls cost more on 7 values)
+    outside = (q < lower - tol) | (q > upper + tol)
+    if np.any(outside):
+        shown = lambda i, x: f"{np.degrees(x):.6g} deg" if revolute(i) else f"{x:.6g} m"  # noqa: E731
+        bad = np.flatnonzero(outside)
+        raise JointLimitError("outside the joint limits: " + "; ".join(
+            f"{joints[i]} {shown(i, q[i])} not in [{shown(i, lower[i])}, {shown(i, upper[i])}]" for i in bad),
+            joints=tuple(joints[i] for i in bad), values=q[bad].copy(), lower=lower[bad].copy(),
+            upper=upper[bad].copy(), parameter=parameter)
+    return q

@@ -30,7 +30,7 @@ from pathlib import Path
 
 from rcm_kin.atomic import write_text
 from rcm_kin.errors import RcmKinError, output_folder, recording_warnings, reissue
-from rcm_kin.parallel import check_workers, process_pool
+from rcm_kin.parallel import check_workers, machine_workers, process_pool
 
 
 def write_report(out: str | Path, data: str | Path | None = None, map_points: int = 61,
@@ -44,7 +44,6 @@ def write_report(out: str | Path, data: str | Path | None = None, map_points: in
     a fixed order, so the report is the same whatever the number of workers or the order in which
     they finish. A report that fails leaves an index.html that says so."""
     from rcm_kin.identification.calibration import calibration_logs
-    from rcm_kin.parallel import machine_workers
     from rcm_kin.statics.maps import check_map_size
 
     if not isinstance(out, (str, Path)) or not str(out).strip():
