@@ -1,5 +1,6 @@
 """``robustness``: controllers over the parameter uncertainty; ``sweep``: design trade-offs. Both
-run on Dask: an embedded local cluster, or ``--scheduler tcp://HOST:PORT``."""
+run on Dask (an embedded local cluster, or ``--scheduler tcp://HOST:PORT``); a small robustness run
+without ``--scheduler`` on a pool of forked processes instead."""
 
 from __future__ import annotations
 
