@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import casadi as ca
@@ -77,6 +77,8 @@ class CompiledPlant:
     period: float                # s
     drive_train: DriveTrainPlant | None = None
     substeps: int = 1            # stick-slip substeps per period (stick_slip.substep_count)
+    parameters: np.ndarray = field(default_factory=lambda: np.zeros(0))   # of parametric functions (their
+                                 # last input, :mod:`rcm_kin.dynamics.parametric`); empty: none
 
     def initial(self, position) -> np.ndarray:
         if self.drive_train is not None:
@@ -94,8 +96,8 @@ class CompiledPlant:
 
     @functools.cached_property
     def kernel_arguments(self) -> tuple:
-        """kind, addresses (3,), work sizes (3, 4), friction (3, n), input gain, damping, reflected
-        inertia (3,) (zeros for the smooth plant), period, substeps: made once per plant."""
+        """kind, addresses (3,), work sizes (3, 4), parameters, friction (3, n), input gain, damping,
+        reflected inertia (3,) (zeros for the smooth plant), period, substeps: made once per plant."""
         addresses, work = np.zeros(3, dtype=np.int64), np.zeros((3, 4), dtype=np.int64)
         for i, fn in enumerate(self.functions):
             addresses[i], work[i] = fn.address, fn.work
@@ -106,7 +108,9 @@ class CompiledPlant:
             friction, gain, damping, inertia = (np.ascontiguousarray(a, dtype=float) for a in
                                                 (self.drive_train.friction, d.input_gain, d.damping,
                                                  d.reflected_inertia))
-        return self.kind, addresses, work, friction, gain, damping, inertia, float(self.period), self.substeps
+        parameters = np.ascontiguousarray(self.parameters, dtype=float)
+        return (self.kind, addresses, work, parameters, friction, gain, damping, inertia, float(self.period),
+                self.substeps)
 
 
 def compiled_drive_train(plant: DriveTrainPlant) -> CompiledPlant | None:

@@ -234,24 +234,25 @@ def _keyed_plant_step(physics: str):
     keys it on the drive-train model it inlines."""
 
     @numba.njit(cache=True)
-    def plant_step(kind, x, u, addresses, friction, input_gain, damping, reflected_inertia, period, substeps,
-                   buffers, arg, res, iw, w, axis):
+    def plant_step(kind, x, u, addresses, parameters, friction, input_gain, damping, reflected_inertia, period,
+                   substeps, buffers, arg, res, iw, w, axis):
         """One period of the plant (``DriveTrainPlant.step`` or the smooth period map) under
-        ``u`` (3,), x advanced in place."""
+        ``u`` (3,), x advanced in place. Each function gets ``parameters`` in the slot after its own
+        inputs (a parametric function's last input; a function without one ignores the slot)."""
         if len(physics) == 0:          # the closure's key (never empty)
             return
         if kind == SMOOTH:             # x (6,) -> period_map(x, u)
             out = buffers[18:24]
-            arg[0], arg[1], res[0] = x.ctypes.data, u.ctypes.data, out.ctypes.data
+            arg[0], arg[1], arg[2], res[0] = x.ctypes.data, u.ctypes.data, parameters.ctypes.data, out.ctypes.data
             call_c(addresses[0], arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
             x[:] = out
             return
         q, v, M, h = buffers[0:3], buffers[3:6], buffers[6:15], buffers[15:18]
         for i in range(3):
             q[i], v[i] = x[6 + i], x[9 + i]
-        arg[0], res[0] = q.ctypes.data, M.ctypes.data
+        arg[0], arg[1], res[0] = q.ctypes.data, parameters.ctypes.data, M.ctypes.data
         call_c(addresses[0], arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
-        arg[0], arg[1], res[0] = q.ctypes.data, v.ctypes.data, h.ctypes.data
+        arg[0], arg[1], arg[2], res[0] = q.ctypes.data, v.ctypes.data, parameters.ctypes.data, h.ctypes.data
         call_c(addresses[1], arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
         for i in range(3):
             for r in range(STATE_SIZE):
@@ -267,9 +268,9 @@ def _keyed_plant_step(physics: str):
 @numba.njit(cache=True)
 def work_buffers(work):
     """Buffers of the plant step: q, v, M, h, x(T) values, CasADi's arg, res, iw and w (``work``
-    (k, 4): each function's sizes). (The axis state's buffer, of the stick-slip model's
+    (k, 4): each function's sizes; arg at least 3 slots, for the parameters after two inputs). (The axis state's buffer, of the stick-slip model's
     ``STATE_SIZE``, is made by the keyed loops: this function is keyed on this file alone.)"""
-    size = np.full(4, 2, dtype=np.int64)
+    size = np.array([3, 2, 2, 2], dtype=np.int64)
     for row in work:
         size = np.maximum(size, row)
     return (np.zeros(24), np.zeros(size[0], dtype=np.int64), np.zeros(size[1], dtype=np.int64),
@@ -285,22 +286,22 @@ def _keyed_loops(physics: str):
     """The loops over :data:`plant_step`, keyed like it (see :func:`_keyed_plant_step`)."""
 
     @numba.njit(cache=True)
-    def plant_steps(x, u, kind, addresses, work, friction, input_gain, damping, reflected_inertia, period,
-                    substeps):
+    def plant_steps(x, u, kind, addresses, work, parameters, friction, input_gain, damping, reflected_inertia,
+                    period, substeps):
         """One plant step per row of ``u`` (n, 3), x in place."""
         if len(physics) == 0:
             return
         buffers, arg, res, iw, w = work_buffers(work)
         axis = np.zeros(STATE_SIZE)
         for k in range(u.shape[0]):
-            plant_step(kind, x, u[k], addresses, friction, input_gain, damping, reflected_inertia, period,
-                       substeps, buffers, arg, res, iw, w, axis)
+            plant_step(kind, x, u[k], addresses, parameters, friction, input_gain, damping, reflected_inertia,
+                       period, substeps, buffers, arg, res, iw, w, axis)
 
     @numba.njit(cache=True)
     def run(first, stop, x, previous, filtered, memory, ref_fw, vel_fw, acc_fw, noise, period, limit, count,
             roll_filter, quantise_pwm, scale, insertion_kp, kind, flags, gains, roll_grid, pitch_grid, table,
-            hold_table, friction_ff, plant_kind, addresses, work, friction, input_gain, damping, reflected_inertia,
-            substeps, log_measured, log_position, log_command, log_pwm):
+            hold_table, friction_ff, plant_kind, addresses, work, parameters, friction, input_gain, damping,
+            reflected_inertia, substeps, log_measured, log_position, log_command, log_pwm):
         """Ticks ``first .. stop - 1`` of ``loop.simulate`` (k < 0: settling); the loop's state
         (x, previous, filtered, memory) advanced in place, the ticks k >= 0 logged; ``scale`` (3,):
         joint units to firmware units (``loop.FIRMWARE_SCALE``), ``insertion_kp``: the insertion's
@@ -329,8 +330,8 @@ def _keyed_loops(physics: str):
                 for j in range(3):
                     log_measured[k, j], log_position[k, j] = measured[j], true[j]
                     log_command[k, j], log_pwm[k, j] = out[j], u[j]
-            plant_step(plant_kind, x, u, addresses, friction, input_gain, damping, reflected_inertia, period,
-                       substeps, buffers, arg, res, iw, w, axis)
+            plant_step(plant_kind, x, u, addresses, parameters, friction, input_gain, damping, reflected_inertia,
+                       period, substeps, buffers, arg, res, iw, w, axis)
             for j in range(x.size):
                 if not np.isfinite(x[j]):
                     return k
