@@ -16,7 +16,9 @@ target within 2x).
 
 ``--robustness``: ``rcm-kin robustness psm --controller p --controller scheduled --experiment sine``
 with 8 and 32 samples from fresh processes; a sample's cost is the difference over 24, against the
-in-process simulation of the same controllers and experiment (target: at most 3x).
+in-process simulation of the same controllers and experiment (target: at most 3x); then the
+compiler runs of 8 samples on an empty cache and of 32 more drawn from another seed (target: none
+after the first sample).
 
 ``--against SRC`` runs the commands a second time with ``PYTHONPATH=SRC`` (another checkout's
 ``src``, e.g. ``git archive main src | tar -x -C /tmp/main``): before and after in one run. The
@@ -126,6 +128,25 @@ def robustness(repeats: int, against: str | None) -> None:
               f"({simulation:.3f} s)")
 
 
+def compiler_calls(src: str = SRC) -> None:
+    """Compiler runs of ``robustness`` on an empty cache (8 samples, seed 0), then of 32 samples
+    drawn from another seed on that cache: with the plant family and the shared model
+    (:mod:`rcm_kin.simulation.plant_family`), none after the first sample's libraries."""
+    with tempfile.TemporaryDirectory() as folder:
+        log, wrapper = Path(folder) / "calls.log", Path(folder) / "cc"
+        wrapper.write_text(f'#!/bin/sh\necho "$@" >> {log}\nexec cc "$@"\n')
+        wrapper.chmod(0o755)
+        env = {**os.environ, "PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1", "CC": str(wrapper),
+               "XDG_CACHE_HOME": folder}
+        counts = []
+        for samples, seed in ((8, 0), (32, 1)):
+            subprocess.run([sys.executable, *ROBUSTNESS, str(samples), "--seed", str(seed)], env=env, check=True,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            counts.append(len(log.read_text().splitlines()) if log.exists() else 0)
+        print(f"compiler runs on an empty cache: 8 samples {counts[0]}, then 32 samples of another seed "
+              f"{counts[1] - counts[0]} more")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
@@ -138,6 +159,7 @@ def main() -> None:
     in_process()
     if args.robustness:
         robustness(max(1, args.repeats // 2), args.against)
+        compiler_calls()
 
 
 if __name__ == "__main__":

@@ -155,6 +155,29 @@ def driven_dynamics(robot: Robot, params: DriveParameters | None = None, q_fixed
     index = [robot.actuated.index(j) for j in joints]
     drive = torque_constants(n) if params is None else drive_constants(params)
     coulomb = bool(coulomb) and params is not None
+    terms = tuple(ca.DM(getattr(drive, name)) for name in TERM_NAMES)
+    moments = {j: ca.DM(h) for j, h in offset_moments(robot, {} if params is None else params.gravity_offsets).items()}
+    return DrivenDynamics(
+        joints=joints, q_fixed=q_fixed, lower=robot.lower[index], upper=robot.upper[index], drive=drive,
+        coulomb=coulomb, **model_functions(robot, joints, q_fixed, terms, moments, coulomb),
+        units=tuple("m" if robot.joint_kind(j) == "prismatic" else "rad" for j in joints),
+        input_unit=PWM_UNIT if params is not None else TORQUE_UNIT, model_label=model_label(params),
+        robot=robot.name)
+
+
+TERM_NAMES = ("input_gain", "damping", "coulomb", "coulomb_velocity", "reflected_inertia")   # DriveConstants'
+
+
+def model_functions(robot: Robot, joints: tuple[str, ...], q_fixed: np.ndarray, terms: tuple, moments: dict,
+                    coulomb: bool, parameters: ca.SX | None = None) -> dict[str, ca.Function]:
+    """The CasADi functions of :class:`DrivenDynamics` (``forward``, ``jacobians``, ``mass_matrix``,
+    ``bias``, ``gravity``, ``rest``) of ``joints``, built once for numbers and for symbols: ``terms``
+    the drive's constants in :data:`TERM_NAMES` order (n,) and ``moments`` the first-moment offsets
+    ({joint index: (3,) kg m}, :func:`~rcm_kin.model.gravity.offset_moments`), each a ``DM`` of numbers
+    or an ``SX`` expression of the symbol ``parameters``, which every function then takes as its
+    last input ``p`` (:mod:`rcm_kin.dynamics.parametric`)."""
+    gain, damping, coulomb_force, coulomb_velocity, reflected = terms
+    n = len(joints)
     tree = tree_joints(robot.tree)
     gravity = np.array(robot.tree.gravity.linear)
     q, v, a, u = (ca.SX.sym(s, n) for s in ("q", "v", "a", "u"))
@@ -163,29 +186,28 @@ def driven_dynamics(robot: Robot, params: DriveParameters | None = None, q_fixed
     rigid = closed_chain_rnea(tree, gravity, phi, q, v, a)
     zero = ca.DM.zeros(n)
     g_rigid = ca.substitute(rigid, ca.vertcat(v, a), ca.vertcat(zero, zero))
-    g_offsets = _offset_gravity(robot, tree, gravity, {} if params is None else params.gravity_offsets, phi, q)
-    M = ca.jacobian(rigid, a) + ca.diag(ca.DM(drive.reflected_inertia))
+    g_offsets = _moment_gravity(tree, gravity, moments, phi, q)
+    M = ca.jacobian(rigid, a) + ca.diag(reflected)
     bias = ca.substitute(rigid, a, zero) + g_offsets
 
-    tau = ca.DM(drive.input_gain) * u - ca.DM(drive.damping) * v
+    tau = gain * u - damping * v
     if coulomb:
-        tau -= ca.DM(drive.coulomb) * ca.tanh(v / ca.DM(drive.coulomb_velocity))
+        tau -= coulomb_force * ca.tanh(v / coulomb_velocity)
     x = ca.vertcat(q, v)
     xdot = ca.vertcat(v, ca.solve(M, tau - bias))
-    return DrivenDynamics(
-        joints=joints, q_fixed=q_fixed, lower=robot.lower[index], upper=robot.upper[index], drive=drive,
-        coulomb=coulomb,
-        forward=ca.Function("forward", [x, u], [xdot], ["x", "u"], ["xdot"]),
-        jacobians=ca.Function("jacobians", [x, u], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)],
-                              ["x", "u"], ["A", "B"]),
-        mass_matrix=ca.Function("mass_matrix", [q], [M], ["q"], ["M"]),
-        bias=ca.Function("bias", [q, v], [bias], ["q", "v"], ["h"]),
-        gravity=ca.Function("gravity", [q], [g_rigid + g_offsets], ["q"], ["g"]),
-        rest=ca.Function("rest", [q], [g_rigid + g_offsets, ca.substitute(M, v, zero),
-                                       ca.jacobian(g_rigid + g_offsets, q)], ["q"], ["g", "M", "dg"]),
-        units=tuple("m" if robot.joint_kind(j) == "prismatic" else "rad" for j in joints),
-        input_unit=PWM_UNIT if params is not None else TORQUE_UNIT, model_label=model_label(params),
-        robot=robot.name)
+    p, p_names = ([], []) if parameters is None else ([parameters], ["p"])
+
+    def function(name, inputs, outputs, names_in, names_out):
+        return ca.Function(name, [*inputs, *p], outputs, [*names_in, *p_names], names_out)
+
+    return dict(
+        forward=function("forward", [x, u], [xdot], ["x", "u"], ["xdot"]),
+        jacobians=function("jacobians", [x, u], [ca.jacobian(xdot, x), ca.jacobian(xdot, u)], ["x", "u"], ["A", "B"]),
+        mass_matrix=function("mass_matrix", [q], [M], ["q"], ["M"]),
+        bias=function("bias", [q, v], [bias], ["q", "v"], ["h"]),
+        gravity=function("gravity", [q], [g_rigid + g_offsets], ["q"], ["g"]),
+        rest=function("rest", [q], [g_rigid + g_offsets, ca.substitute(M, v, zero),
+                                    ca.jacobian(g_rigid + g_offsets, q)], ["q"], ["g", "M", "dg"]))
 
 
 def _driven_closure(robot: Robot, q_fixed: np.ndarray, q, joints: tuple[str, ...]) -> ca.SX:
@@ -215,12 +237,17 @@ def driven_gravity_function(robot: Robot, offsets: dict, q_fixed=None, joints=No
 
 def _offset_gravity(robot: Robot, joints, gravity, offsets: dict, phi, q) -> ca.SX:
     """Generalised gravity of the calibrated first moments (mass-free, kg m in link frames):
-    the gradient of their potential ``-g . (R_j h_j)``."""
-    moments = offset_moments(robot, offsets)
+    :func:`_moment_gravity` of their moments in the joints' frames."""
+    return _moment_gravity(joints, gravity, {j: ca.DM(h) for j, h in offset_moments(robot, offsets).items()}, phi, q)
+
+
+def _moment_gravity(joints, gravity, moments: dict, phi, q) -> ca.SX:
+    """Generalised gravity of first moments ``moments`` ({joint index: (3,) kg m in its frame}, numbers
+    or symbols): the gradient of their potential ``-g . (R_j h_j)``."""
     if not moments:
         return ca.SX.zeros(q.shape[0])
     placements = world_placements(joints, phi)
-    potential = sum(-ca.dot(ca.DM(gravity), placements[j][0] @ ca.DM(h)) for j, h in moments.items())
+    potential = sum(-ca.dot(ca.DM(gravity), placements[j][0] @ h) for j, h in moments.items())
     return ca.gradient(potential, q)
 
 

@@ -40,7 +40,8 @@ from rcm_kin.control.gain_schedule import (
 from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.control.stability import damping_ratios, firmware_loop_matrix, survey_poses
 from rcm_kin.dynamics.drive import DriveParameters
-from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
+from rcm_kin.dynamics.parametric import shared_model
+from rcm_kin.dynamics.state_space import DrivenDynamics
 from rcm_kin.errors import JointLimitError, NonFiniteResultError, RcmKinError
 from rcm_kin.firmware_rules import bilinear
 from rcm_kin.hardware import FIRMWARE_PERIOD, P_GAINS
@@ -51,15 +52,16 @@ from rcm_kin.simulation.experiments import (
     check_in_limits,
     closed_loop,
     experiment_reference,
-    psm_plant,
     psm_schedule,
     start_hold,
 )
 from rcm_kin.simulation.firmware import FirmwareSettings
 from rcm_kin.simulation.loop import AXES, SimulationResult, tracking_metrics
+from rcm_kin.simulation.plant_family import family_of
 from rcm_kin.thesis import K_PITCH, K_ROLL
 
 SURVEY_POINTS = 5       # per axis of the stability grid
+MARGIN_FUNCTIONS = ("gravity", "jacobians")    # what a sample's model evaluates (linearize_grid)
 
 
 @dataclass(frozen=True)
@@ -145,7 +147,7 @@ def loop_margins(model: DrivenDynamics, schedule: GainSchedule, law, points: int
     (pitch Ki 0) leaves the loops' error integral a mode nothing depends on (exactly 0 in s, 1 in
     z); it is left out too, so a P loop is judged on its own modes."""
     _, _, R, P, Q = survey_poses(schedule, points)
-    grid = linearize_grid(model, Q, compile=False)      # a drawn model, used once: not worth a compiler run
+    grid = linearize_grid(model, Q, compile=False)      # a bound model's functions are compiled already
     max_real, radius, damping = -np.inf, 0.0, np.inf
     for r, p, A, B in zip(R.ravel(), P.ravel(), grid.A, grid.B):
         k_roll, k_pitch = law(r, p)
@@ -171,8 +173,18 @@ def _reference_of(robot, experiment: str, period: float, duration: float | None)
 
 def sample_plant(params: DriveParameters, period: float):
     """The plant of a drawn set, its model functions compiled: its identified drive trains when it
-    has them, else the smooth model's period map (:func:`rcm_kin.simulation.experiments.psm_plant`)."""
-    return psm_plant(params, period, fast=True)
+    has them, else the smooth model's period map (as :func:`rcm_kin.simulation.experiments.psm_plant`),
+    from the family of its structure (:func:`rcm_kin.simulation.plant_family.family_of`): compiled
+    once per process, never per set."""
+    return family_of(params, period).plant(params)
+
+
+def sample_model(params: DriveParameters) -> DrivenDynamics:
+    """The drawn set's model without Coulomb friction (its holding PWM, its loop margins): the
+    parametric model of its structure bound to it (:func:`rcm_kin.dynamics.parametric.shared_model`),
+    gravity and Jacobians compiled once per process, equal to ``driven_dynamics(psm, params,
+    coulomb=False)`` bit for bit."""
+    return shared_model(load_robot("psm"), params, coulomb=False, compile_names=MARGIN_FUNCTIONS).bind(params)
 
 
 def closed_loop_run(plant, controller, reference, settings: FirmwareSettings,
@@ -197,7 +209,7 @@ def run_sample(study: Study, index: int, seed: np.random.SeedSequence) -> Sample
     values = draw(study.uncertain, seed)
     params = with_values(study.params, study.uncertain, values)
     plant = sample_plant(params, settings.period)
-    model = driven_dynamics(load_robot("psm"), params, coulomb=False)
+    model = sample_model(params)
     hold = start_hold(reference, model=model)
     n = len(study.controllers)
     max_error, mean_error = np.full((n, 2), np.nan), np.full((n, 2), np.nan)

@@ -268,8 +268,9 @@ def _keyed_plant_step(physics: str):
 @numba.njit(cache=True)
 def work_buffers(work):
     """Buffers of the plant step: q, v, M, h, x(T) values, CasADi's arg, res, iw and w (``work``
-    (k, 4): each function's sizes; arg at least 3 slots, for the parameters after two inputs). (The axis state's buffer, of the stick-slip model's
-    ``STATE_SIZE``, is made by the keyed loops: this function is keyed on this file alone.)"""
+    (k, 4): each function's sizes; arg at least 3 slots, for the parameters after two inputs). (The
+    axis state's buffer, of the stick-slip model's ``STATE_SIZE``, is made by the keyed loops: this
+    function is keyed on this file alone.)"""
     size = np.array([3, 2, 2, 2], dtype=np.int64)
     for row in work:
         size = np.maximum(size, row)

@@ -128,8 +128,19 @@ def smooth_friction(drive: JointDrive) -> AxisFriction:
 def drive_train_plant(robot: Robot, params: DriveParameters, period: float) -> DriveTrainPlant:
     """The PSM plant with ``params``' identified drive trains; a joint without one keeps its
     smooth-model constants (:func:`smooth_friction`)."""
-    base = params
+    return DriveTrainPlant(driven_dynamics(robot, rigid_body_drive(params), coulomb=False),
+                           drive_train_friction(params), period)
+
+
+def rigid_body_drive(params: DriveParameters) -> DriveParameters:
+    """``params`` as a drive-train plant's rigid-body model takes them: each driven joint's smooth
+    friction and extra inertia zeroed (its drive train, :func:`drive_train_friction`, has them)."""
     for joint in DRIVEN:
-        base = with_joint(base, joint, extra_inertia=0.0, viscous=0.0, coulomb=0.0)
-    friction = np.stack([params.drive_train.get(j, smooth_friction(params[j])).vector() for j in DRIVEN])
-    return DriveTrainPlant(driven_dynamics(robot, base, coulomb=False), friction, period)
+        params = with_joint(params, joint, extra_inertia=0.0, viscous=0.0, coulomb=0.0)
+    return params
+
+
+def drive_train_friction(params: DriveParameters) -> np.ndarray:
+    """(3, n): the AxisFriction vector of each driven joint (DRIVEN order): its identified drive
+    train, else its smooth-model constants (:func:`smooth_friction`)."""
+    return np.stack([params.drive_train.get(j, smooth_friction(params[j])).vector() for j in DRIVEN])

@@ -39,7 +39,7 @@ from rcm_kin.errors import RcmKinError
 from rcm_kin.hardware import HOME_INSERTION
 from rcm_kin.model import load_robot
 from rcm_kin.robustness.sampling import draw, sample_seeds, uncertain_parameters, with_values
-from rcm_kin.robustness.task import INSERTION_STATES, sample_plant
+from rcm_kin.robustness.task import INSERTION_STATES, sample_model, sample_plant
 from rcm_kin.simulation.controllers import Hold
 from rcm_kin.simulation.experiments import experiment_reference, start_hold
 from rcm_kin.simulation.firmware import FirmwareSettings
@@ -98,7 +98,7 @@ def loop_family(model, roll_deg: np.ndarray, pitch_deg: np.ndarray, insertion: f
     itself at zero and unit gains (the feedback rows once, the model's sampled input matrix per pose)."""
     P, R = np.meshgrid(pitch_deg, roll_deg, indexing="ij")
     Q = np.column_stack([np.radians(R.ravel()), np.radians(P.ravel()), np.full(R.size, insertion)])
-    grid = linearize_grid(model, Q, compile=False)          # a drawn model, used once: no compiler run
+    grid = linearize_grid(model, Q, compile=False)          # a drawn model's functions: compiled once for all
     held = [zero_order_hold(A, B, period) for A, B in zip(grid.A, grid.B)]
     F0 = np.array([firmware_loop_matrix(A, B, *_gains(np.zeros(5)), period, discrete=d)
                    for A, B, d in zip(grid.A, grid.B, held)])
@@ -208,7 +208,7 @@ def build_draws(params: DriveParameters, samples: int, seed: int, points: int = 
                               "band): the spreads are too wide for the file's holds; check its "
                               "[uncertainty.holding_residuals] (rcm-kin calibrate writes them)", parameter="params")
         drawn = params if (nominal_first and not out) else with_values(params, uncertain, draw(uncertain, s))
-        model = driven_dynamics(psm, drawn, coulomb=False)      # the check's model, and the draw's
+        model = sample_model(drawn)      # the check's model, and the draw's (one compiled model for all)
         if not check(model):
             rejected += 1
             continue

@@ -1,0 +1,71 @@
+"""The plant family (one compiled parametric library for every parameter set) against the plant
+built for each set (``psm_plant``, its numbers compiled in): the same states bit for bit, drive
+trains and smooth model, kernel and readable forms; and no compiler run for a second set."""
+
+from __future__ import annotations
+
+import subprocess
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from rcm_kin.errors import RcmKinError
+from rcm_kin.robustness.sampling import draw, sample_seeds, uncertain_parameters, with_values
+from rcm_kin.simulation.compiled_plant import CompiledPlant
+from rcm_kin.simulation.experiments import psm_plant
+from rcm_kin.simulation.plant_family import family_of, plant_family
+from rcm_kin.symbolic import compiled as compiled_module
+
+PERIOD = 0.0025
+
+
+def smooth(params):
+    """``params`` without drive trains (and so without their fold sets): the smooth model's plant."""
+    return replace(params, drive_train={}, uncertainty=replace(params.uncertainty, folds={}))
+
+
+def drawn(params, seed: int, count: int = 2):
+    uncertain = uncertain_parameters(params)
+    return [with_values(params, uncertain, draw(uncertain, s)) for s in sample_seeds(seed, count)]
+
+
+def run(plant, steps: int = 300) -> np.ndarray:
+    """The plant's state after ``steps`` periods of a seeded random PWM from a pose."""
+    rng = np.random.default_rng(11)
+    x = plant.initial([0.15, -0.2, 0.08])
+    for _ in range(steps):
+        x = plant.step(x, rng.normal(size=3) * 40)
+    return x
+
+
+@pytest.mark.parametrize("shape", ["drive trains", "smooth"])
+def test_family_plants_equal_the_plants_built_per_set(params, shape):
+    base = params if shape == "drive trains" else smooth(params)
+    family = plant_family(base, PERIOD)
+    assert family.drive_trains == (shape == "drive trains")
+    for one in drawn(base, seed=5):
+        fast, readable = family.plant(one), family.plant(one, fast=False)
+        assert isinstance(fast, CompiledPlant) and fast.parameters.size == family.model.size
+        expected = run(psm_plant(one, PERIOD, fast=True))
+        np.testing.assert_array_equal(run(fast), expected)
+        np.testing.assert_array_equal(run(readable), run(psm_plant(one, PERIOD)))
+
+
+def test_a_second_set_runs_without_the_compiler(params, monkeypatch):
+    first, second = drawn(params, seed=21)
+    family_of(first, PERIOD).plant(first)            # built (and compiled, or loaded) once
+    calls = []
+    real = subprocess.run
+    monkeypatch.setattr(compiled_module.subprocess, "run", lambda *a, **k: calls.append(a) or real(*a, **k))
+    plant = family_of(second, PERIOD).plant(second)
+    run(plant, steps=20)
+    assert calls == []
+    assert family_of(second, PERIOD) is family_of(first, PERIOD)
+
+
+def test_a_set_of_the_other_kind_is_refused(params):
+    family = family_of(params, PERIOD)
+    with pytest.raises(RcmKinError, match="with identified drive trains") as error:
+        family.plant(smooth(params))
+    assert error.value.parameter == "params"
