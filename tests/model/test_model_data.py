@@ -12,6 +12,7 @@ import pinocchio as pin
 import pytest
 
 import rcm_kin as rk
+from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.model.loading import urdf_dir
 
 
@@ -119,3 +120,20 @@ def test_the_constrained_gravity_works_in_the_callers_workspace():
     tau = rk.gravity_torque(psm, q, method="constrained", data=mine)
     assert all(np.array_equal(a.homogeneous, b.homogeneous) for a, b in zip(before, psm.scratch.tree.oMi))
     np.testing.assert_allclose(tau, rk.gravity_torque(psm, q, method="reduced"), atol=1e-9)
+
+
+def test_check_pose_one_pass_agrees_with_the_checks(psm):
+    """The one-pass check of a float array (finite and within the limits) refuses what check_q and
+    check_limits refuse, and the limits it reads once cannot change under it."""
+    inside = (psm.lower + psm.upper) / 2
+    assert np.array_equal(psm.check_pose(inside), inside) and psm.check_pose(inside) is not inside
+    for bad, error in ((np.nan, RcmKinError), (np.inf, RcmKinError), (psm.upper[1] + 1e-6, JointLimitError)):
+        q = inside.copy()
+        q[1] = bad
+        with pytest.raises(error):
+            psm.check_pose(q)
+    q = inside.copy()
+    q[1] = psm.upper[1] + 0.5e-9                      # within the tolerance, as check_limits takes it
+    assert np.array_equal(psm.check_pose(q), psm.check_limits(q))
+    with pytest.raises(ValueError):
+        psm.lower[0] = 0.0

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.model.constrained import closure_residual
+from rcm_kin.model.constrained import closure_error
 from rcm_kin.model.reduced import tree_configuration
 from rcm_kin.model.robot import Robot, RobotData, check_robot
 
@@ -47,8 +47,14 @@ def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None,
     data = robot.workspace(data)
     frames = robot.description.frames if frames is None else tuple(frames)
     model, reduced = robot.reduced, data.reduced
-    pin.forwardKinematics(model, reduced, robot.to_reduced(q))
-    placements = {name: pin.updateFramePlacement(model, reduced, fid).copy()
-                  for name, fid in zip(frames, frame_ids(robot, frames))}
-    residual = closure_residual(robot, tree_configuration(robot, q), data)
-    return ForwardKinematics(q, placements, float(abs(residual).max()) if residual.size else 0.0)
+    pin.forwardKinematics(model, reduced, q if _actuated_order(robot) else robot.to_reduced(q))
+    update = pin.updateFramePlacement
+    placements = {name: update(model, reduced, fid).copy() for name, fid in zip(frames, frame_ids(robot, frames))}
+    return ForwardKinematics(q, placements, closure_error(robot, tree_configuration(robot, q), data))
+
+
+@functools.lru_cache(maxsize=None)
+def _actuated_order(robot: Robot) -> bool:
+    """Whether the reduced model's configuration is the actuated vector itself (the PSM's, the
+    MTM's): forward kinematics then skips :meth:`Robot.to_reduced`'s copy."""
+    return robot.reduced.nq == robot.nq and bool(np.array_equal(robot.reduced_q_actuated, np.arange(robot.nq)))

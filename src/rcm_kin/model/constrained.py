@@ -9,6 +9,7 @@ forces ``lambda`` act on link_b at the cut point, in frame A (N).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,6 +71,30 @@ def closure_residual(robot: Robot, q_tree: np.ndarray, data: RobotData | None = 
         c.model.calc(robot.tree, data.tree, c_data)
         parts.append(c.rows @ c_data.constraint_position_error)
     return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def closure_error(robot: Robot, q_tree: np.ndarray, data: RobotData | None = None) -> float:
+    """``max |closure_residual(robot, q_tree)|`` (m; 0 for a serial robot), its declared twin in
+    plain floats: the same products and sums in the same order, without the arrays' per-call cost
+    on 2 or 3 values (forward kinematics' check number; tests/model/test_closure.py holds the
+    two equal)."""
+    data = robot.workspace(data)
+    pin.forwardKinematics(robot.tree, data.tree, q_tree)
+    worst, tree, tree_data = 0.0, robot.tree, data.tree
+    for c, c_data, rows in zip(robot.constraints, data.constraints, _row_floats(robot)):
+        c.model.calc(tree, tree_data, c_data)
+        e0, e1, e2 = c_data.constraint_position_error.tolist()
+        for r0, r1, r2 in rows:
+            error = abs(r0 * e0 + r1 * e1 + r2 * e2)
+            if error > worst:
+                worst = error
+    return worst
+
+
+@functools.lru_cache(maxsize=None)
+def _row_floats(robot: Robot) -> tuple[list[list[float]], ...]:
+    """Each constraint's independent rows as Python floats (built once per robot)."""
+    return tuple(c.rows.tolist() for c in robot.constraints)
 
 
 def constraint_jacobian(robot: Robot, q_tree: np.ndarray, data: RobotData | None = None) -> np.ndarray:

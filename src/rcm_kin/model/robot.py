@@ -13,6 +13,7 @@ threads using one robot never share scratch data.
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
 from collections.abc import Callable
@@ -23,6 +24,8 @@ import pinocchio as pin
 
 from rcm_kin.errors import JointLimitError, RcmKinError
 from rcm_kin.model.description import RobotDescription
+
+LIMIT_TOLERANCE = 1e-9      # rad or m: how far outside its limits a joint value still counts as within
 
 
 @dataclass(frozen=True)
@@ -64,6 +67,10 @@ class Robot:
     upper: np.ndarray
     massless_links: tuple[str, ...] = ()   # moving links whose rigid body has no <inertial> in the URDF
     _threads: threading.local = field(default_factory=threading.local, init=False, repr=False)  # per thread: RobotData
+
+    def __post_init__(self):
+        for limits in (self.lower, self.upper):     # read-only: limit_bounds is computed from them once
+            limits.setflags(write=False)
 
     def create_data(self) -> RobotData:
         """New scratch workspaces for the caller alone (Pinocchio's ``model.createData()``)."""
@@ -158,7 +165,7 @@ class Robot:
             raise RcmKinError(f"joint values must be finite numbers, got {q.tolist()}", parameter=parameter)
         return np.concatenate([q, np.zeros(self.nq - q.size)])
 
-    def check_limits(self, q, tol: float = 1e-9, parameter: str = "q") -> np.ndarray:
+    def check_limits(self, q, tol: float = LIMIT_TOLERANCE, parameter: str = "q") -> np.ndarray:
         """``q`` (actuated, rad or m) unchanged, or a clear error naming every joint outside its limits
         (a :class:`~rcm_kin.errors.JointLimitError` carrying their names, values and limits).
         The one joint-limit policy of rcm_kin: poses outside the limits are refused, not computed."""
@@ -170,8 +177,18 @@ class Robot:
         vector (rad, m), finite and of the right size, and within the joint limits unless
         ``allow_outside_limits`` (an explicit request to evaluate the model outside them);
         else an RcmKinError (:class:`~rcm_kin.errors.JointLimitError` for the limits) naming ``parameter``."""
+        if not allow_outside_limits and type(q) is np.ndarray and q.dtype == np.float64 and q.shape == (self.nq,):
+            low, high = self.limit_bounds
+            if all(lo <= x <= hi for x, lo, hi in zip(q.tolist(), low, high)):
+                return q.copy()           # finite and within the limits (NaN fails every comparison): one pass
         q = self.check_q(q, parameter=parameter)
         return q if allow_outside_limits else self.check_limits(q, parameter=parameter)
+
+    @functools.cached_property
+    def limit_bounds(self) -> tuple[list[float], list[float]]:
+        """The joint limits widened by :data:`LIMIT_TOLERANCE` as Python floats, as
+        :func:`check_within_limits` compares them: the one-pass check of :meth:`check_pose`."""
+        return (self.lower - LIMIT_TOLERANCE).tolist(), (self.upper + LIMIT_TOLERANCE).tolist()
 
 
 def check_robot(robot, parameter: str = "robot") -> Robot:
@@ -183,7 +200,7 @@ def check_robot(robot, parameter: str = "robot") -> Robot:
     raise RcmKinError(f"`{parameter}` must be a loaded robot ({hint}), got {type(robot).__name__}", parameter=parameter)
 
 
-def check_within_limits(q, joints, lower, upper, revolute: Callable[[int], bool], tol: float = 1e-9,
+def check_within_limits(q, joints, lower, upper, revolute: Callable[[int], bool], tol: float = LIMIT_TOLERANCE,
                         parameter: str = "q") -> np.ndarray:
     """``q`` (rad or m, one value per joint of ``joints``) unchanged, or the one joint-limit error of
     rcm_kin: a :class:`~rcm_kin.errors.JointLimitError` naming ``parameter`` and every joint outside
