@@ -265,7 +265,8 @@ def _merged(fn: ca.Function) -> ca.Function:
 
 def map_points(fn: ca.Function, *args: np.ndarray, chunk: int = 16384) -> tuple[np.ndarray, ...]:
     """``fn`` at N points, ``fn.map`` over chunks of ``chunk`` points through bound buffers (no
-    CasADi matrices in between, memory bounded by the chunk and the outputs).
+    CasADi matrices in between, memory bounded by the chunk and the outputs; each map built once
+    per process and size).
 
     ``args``: arrays (N, nnz_in_i), one row per point (dense inputs). Returns one array per output:
     (N,) for a scalar output, (N, rows) for a column vector, (N, rows, cols) otherwise
@@ -280,7 +281,7 @@ def map_points(fn: ca.Function, *args: np.ndarray, chunk: int = 16384) -> tuple[
     for start in range(0, n, chunk):
         stop = min(start + chunk, n)
         if stop - start not in mapped:
-            mapped[stop - start] = fn.map(stop - start).buffer()
+            mapped[stop - start] = _mapped(fn, stop - start).buffer()    # the map built once per process
         buffer, trigger = mapped[stop - start]
         views = [a[start:stop] for a in rows] + [nz[start:stop] for nz in nonzeros]
         for i, v in enumerate(views[:len(rows)]):
