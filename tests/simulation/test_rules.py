@@ -23,8 +23,8 @@ from rcm_kin.hardware import INSERTION_KP
 from rcm_kin.simulation import kernel, kernel_forms
 
 CASES = 400
-pytestmark = pytest.mark.skipif(shutil.which(os.environ.get("CC") or "cc") is None,
-                                reason="no C compiler (CC hidden): no compiled kernel")
+needs_compiler = pytest.mark.skipif(shutil.which(os.environ.get("CC") or "cc") is None,
+                                    reason="no C compiler (CC hidden): no compiled kernel")
 
 
 def _grid(rng, n) -> np.ndarray:
@@ -32,6 +32,7 @@ def _grid(rng, n) -> np.ndarray:
     return np.cumsum(rng.uniform(0.5, 20.0, n)) - rng.uniform(0, 40)
 
 
+@needs_compiler
 def test_bilinear_twin_equals_the_rule():
     """Poses inside, on the grid points and beyond every edge (clamped), grids of 2 to 5 points."""
     rng = np.random.default_rng(11)
@@ -62,6 +63,7 @@ def _law(pid, with_ff, c1, c2, k, ff, E):
     return u + ff if with_ff else u
 
 
+@needs_compiler
 @pytest.mark.parametrize("pid", [False, True])
 def test_conditional_integral_twin_equals_the_rule(pid):
     """The PID's law and the pitch's (with and without feedforward), commands inside the limit,
@@ -86,6 +88,7 @@ def test_conditional_integral_twin_equals_the_rule(pid):
     assert held > 20 and integrated > 20                    # both branches were exercised
 
 
+@needs_compiler
 def test_quantise_twin_equals_the_rule():
     """Whole counts of the firmware's resolutions, exact axes (count 0), noise counts, positions at
     half a count (round half to even)."""
@@ -102,6 +105,7 @@ def test_quantise_twin_equals_the_rule():
                                       err_msg=f"quantise, case {case}")
 
 
+@needs_compiler
 def test_velocity_estimate_twin_equals_the_rule():
     rng = np.random.default_rng(14)
     for case in range(CASES):
@@ -112,6 +116,7 @@ def test_velocity_estimate_twin_equals_the_rule():
         np.testing.assert_array_equal(filtered, expected, err_msg=f"velocity_estimate, case {case}")
 
 
+@needs_compiler
 @pytest.mark.parametrize("whole_counts", [False, True])
 def test_saturate_twin_equals_the_rule(whole_counts):
     """Commands inside, at and beyond the limits, negative fractions (truncated toward zero)."""
@@ -130,6 +135,7 @@ def test_saturate_twin_equals_the_rule(whole_counts):
         assert np.all(np.abs(out) <= limit)
 
 
+@needs_compiler
 def test_friction_feedforward_twin_equals_the_schedule_rule():
     """The sliding-friction feedforward of the friction-compensated controller, per axis, at
     reference velocities from rest to far beyond the ramp (tanh saturated), both signs. Within
@@ -149,6 +155,7 @@ def test_friction_feedforward_twin_equals_the_schedule_rule():
             raise AssertionError(f"friction_feedforward, case {case}: {exc}") from None
 
 
+@needs_compiler
 def test_the_p_laws_twins_equal_the_rules():
     """The roll and pitch P law ``-Kp e`` and the insertion's ``Kp (r - y)``, to the bit."""
     rng = np.random.default_rng(17)
@@ -205,6 +212,7 @@ def _random_axis(rng, case) -> tuple[np.ndarray, tuple, np.ndarray]:
     return friction.vector(), drive, state
 
 
+@needs_compiler
 def test_stick_slip_advance_twin_equals_the_numba_kernel():
     """The kernel's drive-train axis against ``stick_slip.advance`` over five periods from random
     states, every term of the model on and off: to the bit (both call the C library's ``exp``)."""
@@ -239,6 +247,7 @@ def test_the_kernel_takes_the_python_constants_and_is_keyed_on_them(monkeypatch)
     assert kernel.library_key(text, ["cc"]) != kernel.library_key(text, ["clang"])
 
 
+@needs_compiler
 def test_a_fresh_simulation_loads_no_numba():
     """The compiled closed loop runs without numba (nor SciPy, the gain schedule read from its cache):
     a fresh process that runs an experiment twice has neither loaded; the readable plant's step

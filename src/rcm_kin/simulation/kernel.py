@@ -39,6 +39,7 @@ from rcm_kin.symbolic.compiled import COMPILE_FLAGS, cache_key, cached_library, 
 DRIVE_TRAIN, SMOOTH = 0, 1                         # CompiledPlant.kind
 FLAGS = (*COMPILE_FLAGS, "-ffp-contract=off")      # no fused multiply-adds: the Python side does none
 C_SOURCE = Path(__file__).with_name("kernel.c")
+INT64 = np.dtype(np.int64)
 
 _double, _int, _long, _pointer = ctypes.c_double, ctypes.c_int, ctypes.c_longlong, ctypes.c_void_p
 SIGNATURES = {   # entry point: (result, argument types), as kernel.c declares them
@@ -82,7 +83,8 @@ def library_key(text: str, command: list[str]) -> str:
     return cache_key("rcm-kin closed-loop kernel", text, " ".join(command + list(FLAGS)))
 
 
-_LOADED: dict[tuple[str, str], ctypes.CDLL | None] = {}      # ($CC, source) -> the loaded library, or None
+_LOADED: dict[tuple[str, str], ctypes.CDLL | None] = {}      # ($CC, cache folder) -> the library, or None
+_RUNNING: list[ctypes.CDLL] = []                              # the library the entry points call, once loaded
 
 
 def library() -> ctypes.CDLL | None:
@@ -102,6 +104,8 @@ def library() -> ctypes.CDLL | None:
                 entry = getattr(found[1], name)
                 entry.restype, entry.argtypes = result, arguments
         _LOADED[key] = None if found is None else found[1]
+        if found is not None and not _RUNNING:
+            _RUNNING.append(found[1])
     return _LOADED[key]
 
 
@@ -111,31 +115,46 @@ def available() -> bool:
 
 
 def _kernel() -> ctypes.CDLL:
-    found = library()
+    """The library the entry points call: the first loaded in the process (a library stays valid
+    whatever ``$CC`` says later), else :func:`library` now."""
+    found = _RUNNING[0] if _RUNNING else library()
     if found is None:
         raise RcmKinError("the compiled closed loop needs a C compiler (set CC); run the readable loop instead")
     return found
 
 
-def _address(array: np.ndarray, name: str, dtype=np.float64, writable: bool = False) -> int:
+def _address(array: np.ndarray, name: str, dtype=np.dtype(np.float64), writable: bool = False) -> int:
     """The address of ``array``'s data, or an error unless it is a C-contiguous array of ``dtype``
     (and writable when the kernel writes it): the C reads it as such, unchecked."""
-    if not (isinstance(array, np.ndarray) and array.dtype == dtype and array.flags.c_contiguous
-            and (array.flags.writeable or not writable)):
+    if not (isinstance(array, np.ndarray) and (array.dtype is dtype or array.dtype == dtype)
+            and array.flags.c_contiguous and (array.flags.writeable or not writable)):
         raise RcmKinError(f"the kernel's `{name}` is a C-contiguous{' writable' if writable else ''} {np.dtype(dtype)} "
                           f"array, got {getattr(array, 'dtype', type(array).__name__)}", parameter=name)
     return array.ctypes.data
 
 
+_PLANTS: dict[int, tuple[tuple, list]] = {}     # id(addresses) -> (the plant's arrays, their kernel arguments)
+
+
 def _plant(kind, addresses, work, parameters, friction, input_gain, damping, reflected_inertia) -> list:
-    """The plant's arguments of ``rk_plant_steps`` and ``rk_run`` after its kind."""
+    """The plant's arguments of ``rk_plant_steps`` and ``rk_run`` after its kind, made once per plant
+    (a :class:`~rcm_kin.simulation.compiled_plant.CompiledPlant` passes the same arrays every step: the
+    memo holds them, so their ids stay theirs)."""
+    arrays = (addresses, work, parameters, friction, input_gain, damping, reflected_inertia)
+    known = _PLANTS.get(id(addresses))
+    if known is not None and known[1][0] == kind and all(a is b for a, b in zip(known[0], arrays)):
+        return known[1]
     if len(addresses) < (1 if kind == SMOOTH else 2) or work.ndim != 2 or work.shape[1] != 4 or friction.ndim != 2:
         raise RcmKinError("the kernel's plant needs its functions' addresses and work sizes (k, 4) and friction "
                           "(3, n)", parameter="addresses")
-    return [int(kind), _address(addresses, "addresses", np.int64), _address(work, "work", np.int64), work.shape[0],
+    made = [int(kind), _address(addresses, "addresses", INT64), _address(work, "work", INT64), work.shape[0],
             _address(parameters, "parameters"), _address(friction, "friction"), friction.shape[1],
             _address(input_gain, "input_gain"), _address(damping, "damping"),
             _address(reflected_inertia, "reflected_inertia")]
+    if len(_PLANTS) >= 64:
+        _PLANTS.clear()
+    _PLANTS[id(addresses)] = (arrays, made)
+    return made
 
 
 def _state(x: np.ndarray, kind: int) -> int:
@@ -178,7 +197,7 @@ def run(first, stop, x, previous, filtered, memory, ref_fw, vel_fw, acc_fw, nois
         _address(ref_fw, "ref_fw"), _address(vel_fw, "vel_fw"), _address(acc_fw, "acc_fw"), n,
         _address(noise, "noise"), noise.shape[0], float(period), scalars[1:].ctypes.data, scalars[2:].ctypes.data,
         float(roll_filter), int(bool(quantise_pwm)), scalars.ctypes.data, float(insertion_kp), int(kind),
-        _address(flags, "flags", np.bool_), _address(gains, "gains"), _address(roll_grid, "roll_grid"),
+        _address(flags, "flags", np.dtype(np.bool_)), _address(gains, "gains"), _address(roll_grid, "roll_grid"),
         roll_grid.size, _address(pitch_grid, "pitch_grid"), pitch_grid.size, _address(table, "table"), table.shape[-1],
         _address(hold_table, "hold_table"), hold_table.shape[-1], _address(friction_ff, "friction_ff"),
         *_plant(plant_kind, addresses, work, parameters, friction, input_gain, damping, reflected_inertia),
