@@ -17,6 +17,8 @@ STATE_SIZE = 4 + MAX_ELEMENTS   # one axis's state [theta, w, q, v, z_1 .. z_MAX
 SUBSTEP = 2.5e-4   # s: integration step
 COUPLING_SWEEPS = 4   # block Gauss-Seidel sweeps of the motor-cable-link step: each contracts the coupling
                       # error by h^2 k_c / (J_m + h^2 k_c) x h^2 k_c / M (< 0.03 up to k_c = 1e6 N m/rad)
+# (stick_slip's numba kernels freeze MAX_ELEMENTS and COUPLING_SWEEPS when compiled, and numba keys its cache on
+# stick_slip.py alone: a change here needs stick_slip.py touched; the C kernel's key includes them)
 DISCRETE = ("presliding_elements",)   # model choices (whole numbers): never searched, sampled or differenced
 
 

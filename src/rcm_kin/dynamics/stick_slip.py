@@ -232,6 +232,8 @@ _run_closed = _keyed_run_closed(RULES)
 
 @numba.njit(cache=True)
 def advance(th, ku, kemf, Jm, gravity, inertia, pwm, state, period, substeps):
+    """One axis's ``state`` over ``period`` s in ``substeps`` with ``pwm``, ``gravity`` and ``inertia``
+    held (in place). The compiled closed loop has its declared C twin (:mod:`rcm_kin.simulation.kernel`)."""
     h = period / substeps
     n, unit = elements_of(th)
     for _ in range(substeps):

@@ -8,9 +8,9 @@ model's numba kernel (:func:`rcm_kin.dynamics.stick_slip.advance`), written in t
 operations (so the engines give the same numbers; the friction feedforward's ``tanh`` is the C
 library's here and NumPy's own in the readable controller, 1 ulp apart at some arguments);
 ``tests/simulation/test_rules.py`` holds each twin to its original on random inputs. The functions
-here take the arguments the numba kernels took, and the C does no bounds checks: the arrays'
-types are checked here, their shapes by :class:`~rcm_kin.simulation.kernel_forms.LoopLaw` and
-:class:`~rcm_kin.simulation.compiled_plant.CompiledPlant`, which make them.
+here take the arguments the numba kernels they replace took, and the C does no bounds checks: the
+arrays' types are checked here, their shapes by :class:`~rcm_kin.simulation.kernel_forms.LoopLaw`
+and :class:`~rcm_kin.simulation.compiled_plant.CompiledPlant`, which make them.
 
 The build: the numbers the C takes from Python modules (the stick-slip state's layout, the law
 kinds of :mod:`rcm_kin.simulation.kernel_forms`, the plant kinds here) are written as ``#define``
