@@ -261,3 +261,25 @@ def test_a_fresh_simulation_loads_no_numba():
             for _ in range(2)]                   # the first may design and cache the schedule (SciPy)
     assert runs[0][:2] == ["compiled", "False"]
     assert runs[1] == ["compiled", "False", "False", "True"]
+
+
+@needs_compiler
+def test_the_kernel_library_is_cached_checked_and_rebuilt_once(tmp_path, monkeypatch):
+    """The kernel goes to the compiled-function cache with its checksum file, is loaded from it by a
+    new process (here: a cleared memo), and one damaged there is deleted and built anew with one
+    warning (:func:`rcm_kin.symbolic.compiled.build_library`)."""
+    from rcm_kin.errors import RcmKinWarning
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.setattr(kernel, "_LOADED", {})
+    assert kernel.available()
+    (built,) = (tmp_path / "rcm-kin" / "casadi").glob("rcm_kin_loop_*.so")
+    assert built.with_name(built.name + ".sha256").read_text().split()[1] == kernel.library_key(
+        kernel.source(), [os.environ.get("CC") or "cc"])
+    damaged = built.with_name("damaged")
+    damaged.write_bytes(built.read_bytes()[:1000])                  # truncated (by another process: this one
+    damaged.replace(built)                                          # has the library mapped)
+    monkeypatch.setattr(kernel, "_LOADED", {})
+    with pytest.warns(RcmKinWarning, match="does not match its SHA-256") as caught:
+        library = kernel.library()
+    assert len(caught) == 1 and library.rk_p_command(2.0, 3.0) == -6.0
