@@ -11,7 +11,8 @@ user would write, same run:
   the closure projection, the offsets' gravity derivatives), which the tests hold to 1e-10.
 
     python benchmarks/bench_linearization.py [POINTS ...]     (grid points per axis, default 41)
-Target (issue 30): ``linearize_grid`` <= 0.3x the plain ``computeABADerivatives`` loop per pose, at 41 x 41 and 201 x 201.
+Target (issue 30): ``linearize_grid`` <= 0.3x the plain ``computeABADerivatives`` loop per pose, at
+41 x 41 and 201 x 201.
 """
 
 from __future__ import annotations

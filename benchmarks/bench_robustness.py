@@ -4,7 +4,7 @@ would write in one process (``run_sample`` for each seed, no Dask), same run.
 
 Each sample: one parameter set drawn, the sinusoid (6 s at 400 Hz plus the 1 s settling) with
 the P and the scheduled controllers on the drawn plant, and their linear margins on a 5 x 5 grid.
-Each cluster is warmed up first (one sample per worker: imports, the numba kernels, the nominal
+Each cluster is warmed up first (one sample per worker: imports, the compiled kernels, the nominal
 gain schedule), so the rates are the steady ones; the start-up is reported beside them, and the
 CPU time the workers spent (``time.process_time`` in each) per sample and as a share of the
 wall-clock time: on a busy machine the scaling is the CPU the workers got, which this shows.

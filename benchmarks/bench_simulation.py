@@ -2,7 +2,8 @@
 quantisation, firmware velocity estimate), and the cost of one plant period, same run:
 
 - the shipped plant, :class:`~rcm_kin.simulation.plant.DriveTrainPlant`: the CasADi mass
-  matrix and bias once per period, three stick-slip axes advanced by numba (4 substeps);
+  matrix and bias once per period, three stick-slip axes advanced by numba (4 substeps; in the
+  compiled engine by the kernel's C twin);
 - the smooth model as before the drive trains: ``period_map(driven_dynamics(psm, params).forward,
   period)`` (CasADi RK4, 4 substeps), also run in the closed loop (the drive trains stripped
   from the shipped parameters, so ``run_experiment`` builds the smooth plant);
@@ -116,7 +117,7 @@ def main() -> None:
                                                                           rows[1:4])))
     compiled_plant, _ = psm_plant_and_schedule(fast=True)
     compiled_smooth = psm_plant_and_schedule(smooth_params, fast=True)[0]
-    report([(f"compiled engine: one plant period, {type(compiled_plant).__name__}.step (numba + C M/bias, "
+    report([(f"compiled engine: one plant period, {type(compiled_plant).__name__}.step (C kernel + C M/bias, "
              "from Python)", per_call(lambda: compiled_plant.step(x, u), 2000)),
             (f"compiled engine: one smooth period, {type(compiled_smooth).__name__}.step (C RK4, from Python)",
              per_call(lambda: compiled_smooth.step(xs, u), 2000))])

@@ -22,7 +22,7 @@ after the first sample).
 
 ``--against SRC`` runs the commands a second time with ``PYTHONPATH=SRC`` (another checkout's
 ``src``, e.g. ``git archive main src | tar -x -C /tmp/main``): before and after in one run. The
-caches (compiled functions, numba, gain schedules) are warm: run each command once first, as the
+caches (compiled functions and kernel, gain schedules) are warm: run each command once first, as the
 benchmark does.
 
     python benchmarks/bench_startup.py [--repeats 5] [--against /tmp/main/src]

@@ -22,7 +22,7 @@ per second of the compiled loop it simulates, beside one readable-loop run, same
    with the chosen design (``tuned_controller(tuned_schedule(psm_schedule(params), study.values))``),
    per experiment (sine 6 s, target 4 s, each after the loop's 1 s of settling, 400 Hz):
    - compiled: ``closed_loop(draw.plant, controller, reference, settings, hold=draw.holds[e])``
-     (``fast=True``, the numba kernel), best of ``--repeats`` passes over the draws;
+     (``fast=True``, the compiled C kernel), best of ``--repeats`` passes over the draws;
    - the objective around it: ``evaluate`` (adds the joint-range check and the tracking metrics)
      and ``judge`` (adds building the candidate's schedule and controller and the frozen-loop
      spectral radius on the 9 x 9 tuning grid of every draw), per run;

@@ -6,7 +6,7 @@ Every model of the firmware calls these functions: the gain schedule
 drive-train axis under its recorded law (:func:`rcm_kin.dynamics.stick_slip.simulate_axis_closed`,
 which compiles :func:`quantise` and :func:`saturate` themselves with numba) and the excitation's
 replay (:mod:`rcm_kin.identification.replay`). The compiled closed loop
-(:mod:`rcm_kin.simulation.kernel`) has one numba twin of each, written in the same order of
+(:mod:`rcm_kin.simulation.kernel`) has one C twin of each, written in the same order of
 operations, and ``tests/simulation/test_rules.py`` holds every twin to its statement here.
 
 - :func:`bilinear`: the gain tables' clamped bilinear interpolation (``gain_schedule.h``);

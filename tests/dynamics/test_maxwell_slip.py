@@ -9,10 +9,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 import pytest
 
+from rcm_kin.dynamics.axis_friction import SUBSTEP
 from rcm_kin.dynamics.stick_slip import (
     MAX_ELEMENTS,
     STATE_SIZE,
-    SUBSTEP,
     AxisFriction,
     AxisPlant,
     force_unit,

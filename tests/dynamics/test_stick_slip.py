@@ -7,7 +7,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 import pytest
 
-from rcm_kin.dynamics.stick_slip import STATE_SIZE, SUBSTEP, AxisFriction, AxisPlant, rest_state, simulate_axis
+from rcm_kin.dynamics.axis_friction import SUBSTEP
+from rcm_kin.dynamics.stick_slip import STATE_SIZE, AxisFriction, AxisPlant, rest_state, simulate_axis
 
 MASS = 0.5        # kg m^2
 COULOMB = 0.8     # N m

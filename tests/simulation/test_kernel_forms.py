@@ -1,4 +1,4 @@
-"""A :class:`LoopLaw` the kernel could not index is refused when it is made (numba does no bounds
+"""A :class:`LoopLaw` the kernel could not index is refused when it is made (the C kernel does no bounds
 checks: a short memory or a table smaller than its grids would be read and written out of
 bounds), the field at fault named."""
 

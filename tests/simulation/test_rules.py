@@ -1,22 +1,30 @@
-"""Each firmware rule of the compiled kernel (:mod:`rcm_kin.simulation.kernel`) against its one
-plain statement (:mod:`rcm_kin.firmware_rules`) on a few hundred seeded random inputs, the
-clamping and saturation edges among them: a failure names the rule. The stick-slip axis's
-closed loop compiles the statements themselves (:mod:`rcm_kin.dynamics.stick_slip`): held to
-them too."""
+"""Each firmware rule of the compiled kernel (the C of :mod:`rcm_kin.simulation.kernel`) against
+its one plain statement (:mod:`rcm_kin.firmware_rules`) on a few hundred seeded random inputs, the
+clamping and saturation edges among them: a failure names the rule; the kernel's stick-slip axis
+against the model's numba kernel (:func:`rcm_kin.dynamics.stick_slip.advance`) on random states.
+The stick-slip axis's closed loop compiles the statements themselves
+(:mod:`rcm_kin.dynamics.stick_slip`): held to them too."""
 
 from __future__ import annotations
 
 import functools
+import os
+import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 from rcm_kin import firmware_rules as rules
-from rcm_kin.dynamics import stick_slip
+from rcm_kin.dynamics import axis_friction, stick_slip
+from rcm_kin.dynamics.axis_friction import MAX_ELEMENTS, STATE_SIZE, AxisFriction, substep_count
 from rcm_kin.hardware import INSERTION_KP
-from rcm_kin.simulation import kernel
+from rcm_kin.simulation import kernel, kernel_forms
 
 CASES = 400
+needs_compiler = pytest.mark.skipif(shutil.which(os.environ.get("CC") or "cc") is None,
+                                    reason="no C compiler (CC hidden): no compiled kernel")
 
 
 def _grid(rng, n) -> np.ndarray:
@@ -24,6 +32,7 @@ def _grid(rng, n) -> np.ndarray:
     return np.cumsum(rng.uniform(0.5, 20.0, n)) - rng.uniform(0, 40)
 
 
+@needs_compiler
 def test_bilinear_twin_equals_the_rule():
     """Poses inside, on the grid points and beyond every edge (clamped), grids of 2 to 5 points."""
     rng = np.random.default_rng(11)
@@ -54,6 +63,7 @@ def _law(pid, with_ff, c1, c2, k, ff, E):
     return u + ff if with_ff else u
 
 
+@needs_compiler
 @pytest.mark.parametrize("pid", [False, True])
 def test_conditional_integral_twin_equals_the_rule(pid):
     """The PID's law and the pitch's (with and without feedforward), commands inside the limit,
@@ -78,6 +88,7 @@ def test_conditional_integral_twin_equals_the_rule(pid):
     assert held > 20 and integrated > 20                    # both branches were exercised
 
 
+@needs_compiler
 def test_quantise_twin_equals_the_rule():
     """Whole counts of the firmware's resolutions, exact axes (count 0), noise counts, positions at
     half a count (round half to even)."""
@@ -94,6 +105,7 @@ def test_quantise_twin_equals_the_rule():
                                       err_msg=f"quantise, case {case}")
 
 
+@needs_compiler
 def test_velocity_estimate_twin_equals_the_rule():
     rng = np.random.default_rng(14)
     for case in range(CASES):
@@ -104,6 +116,7 @@ def test_velocity_estimate_twin_equals_the_rule():
         np.testing.assert_array_equal(filtered, expected, err_msg=f"velocity_estimate, case {case}")
 
 
+@needs_compiler
 @pytest.mark.parametrize("whole_counts", [False, True])
 def test_saturate_twin_equals_the_rule(whole_counts):
     """Commands inside, at and beyond the limits, negative fractions (truncated toward zero)."""
@@ -122,6 +135,7 @@ def test_saturate_twin_equals_the_rule(whole_counts):
         assert np.all(np.abs(out) <= limit)
 
 
+@needs_compiler
 def test_friction_feedforward_twin_equals_the_schedule_rule():
     """The sliding-friction feedforward of the friction-compensated controller, per axis, at
     reference velocities from rest to far beyond the ramp (tanh saturated), both signs. Within
@@ -141,6 +155,7 @@ def test_friction_feedforward_twin_equals_the_schedule_rule():
             raise AssertionError(f"friction_feedforward, case {case}: {exc}") from None
 
 
+@needs_compiler
 def test_the_p_laws_twins_equal_the_rules():
     """The roll and pitch P law ``-Kp e`` and the insertion's ``Kp (r - y)``, to the bit."""
     rng = np.random.default_rng(17)
@@ -176,27 +191,95 @@ def test_the_stick_slip_axis_compiles_the_rules_themselves():
     assert rules.quantise(0.3004, 0.001, origin=0.1002) == 0.1002 + 200 * 0.001       # counted from the origin
 
 
-def test_the_cached_kernels_are_keyed_on_the_sources_they_inline():
-    """A cached kernel is keyed on its own file only (numba's cache): one that freezes another
-    module's constant (the law kinds of kernel_forms) or inlines its code (the stick-slip model,
-    the rules) is built in a closure over a hash of those sources, and no top-level kernel reads
-    such a constant."""
-    import hashlib
-    import inspect
-    from pathlib import Path
+def _random_axis(rng, case) -> tuple[np.ndarray, tuple, np.ndarray]:
+    """A friction vector (rigid or two-mass drive, with or without stiction and presliding, 1 to
+    MAX_ELEMENTS elements), the drive's (k_u, k_emf, J_m, gravity, inertia, pwm) and a state, its
+    velocities at rest (exactly 0) in a third of the cases."""
+    presliding = case % 3 != 0
+    friction = AxisFriction(
+        extra_inertia=rng.uniform(0, 2e-3), viscous=rng.uniform(0, 0.05), coulomb=rng.uniform(0, 0.4),
+        static=rng.uniform(0, 0.6) if case % 2 else 0.0, stribeck_velocity=rng.uniform(0.002, 0.2),
+        presliding_stiffness=rng.uniform(1, 80) if presliding else 0.0, presliding_slope=rng.uniform(-1, 1),
+        presliding_force=rng.uniform(0, 0.3), cable_stiffness=rng.uniform(10, 1e4) if case % 4 < 2 else 0.0,
+        cable_damping=rng.uniform(0, 0.1), motor_coulomb=rng.uniform(0, 0.1), motor_viscous=rng.uniform(0, 0.01),
+        presliding_elements=float(rng.integers(1, MAX_ELEMENTS + 1)))
+    drive = (rng.uniform(1e-3, 1e-2), rng.uniform(0, 0.05), rng.uniform(1e-4, 3e-3), rng.normal(0, 0.3),
+             rng.uniform(1e-3, 5e-2), rng.uniform(-255, 255))
+    state = rng.normal(0, 0.3, STATE_SIZE)
+    state[4:] = state[2] + rng.normal(0, 2e-3, MAX_ELEMENTS)
+    if case % 3 == 1:
+        state[1] = state[3] = 0.0
+    return friction.vector(), drive, state
 
-    from rcm_kin import firmware_rules
-    from rcm_kin.simulation import kernel_forms
 
-    sources = hashlib.sha256(b"".join(Path(m.__file__).read_bytes()
-                                      for m in (stick_slip, kernel_forms, firmware_rules))).hexdigest()
-    assert kernel.SOURCES == sources
-    for fn in (kernel.command, kernel.gain_scheduled, kernel.plant_step, kernel.plant_steps, kernel.run):
-        keys = [c.cell_contents for c in fn.py_func.__closure__ if isinstance(c.cell_contents, str)]
-        assert keys == [sources], fn.py_func.__name__
-    keys = [c.cell_contents for c in stick_slip._run_closed.py_func.__closure__ if isinstance(c.cell_contents, str)]
-    assert keys == [hashlib.sha256(Path(firmware_rules.__file__).read_bytes()).hexdigest()]
-    kinds = {"P", "PID", "STATE_FEEDBACK", "THESIS", "INSERTION_KP", "FIRMWARE_SCALE"}
-    for name, fn in inspect.getmembers(kernel, lambda f: hasattr(f, "py_func")):
-        if fn.py_func.__closure__ is None:                  # a top-level kernel, cached on kernel.py alone
-            assert not kinds & set(fn.py_func.__code__.co_names), f"{name} freezes another module's constant"
+@needs_compiler
+def test_stick_slip_advance_twin_equals_the_numba_kernel():
+    """The kernel's drive-train axis against ``stick_slip.advance`` over five periods from random
+    states, every term of the model on and off: to the bit (both call the C library's ``exp``)."""
+    rng = np.random.default_rng(19)
+    for case in range(CASES):
+        th, drive, state = _random_axis(rng, case)
+        period = rng.choice([1 / 400, 1e-3, 0.01])
+        substeps = substep_count(period)
+        numba, c = state.copy(), state.copy()
+        for _ in range(5):
+            stick_slip.advance(th, *drive, numba, period, substeps)
+            kernel.advance(th, *drive, c, period, substeps)
+            np.testing.assert_array_equal(c, numba, err_msg=f"advance, case {case}")
+    assert kernel.defines()["RK_COUPLING_SWEEPS"] == stick_slip.COUPLING_SWEEPS
+
+
+def test_the_kernel_takes_the_python_constants_and_is_keyed_on_them(monkeypatch):
+    """The C copies no number of the Python modules: the stick-slip state's layout, the law kinds
+    and the plant kinds are ``#define`` lines written before it, part of the text the library is
+    built and keyed from, so a changed constant builds a new library."""
+    text = kernel.source()
+    assert "#define RK_" not in kernel.C_SOURCE.read_text()
+    expected = {"RK_STATE_SIZE": STATE_SIZE, "RK_MAX_ELEMENTS": MAX_ELEMENTS, "RK_THESIS": kernel_forms.THESIS,
+                "RK_COUPLING_SWEEPS": axis_friction.COUPLING_SWEEPS, "RK_P": kernel_forms.P, "RK_PID": kernel_forms.PID,
+                "RK_STATE_FEEDBACK": kernel_forms.STATE_FEEDBACK, "RK_DRIVE_TRAIN": kernel.DRIVE_TRAIN,
+                "RK_SMOOTH": kernel.SMOOTH}
+    assert kernel.defines() == expected
+    for name, value in expected.items():
+        assert f"#define {name} {value}\n" in text
+    monkeypatch.setattr(axis_friction, "COUPLING_SWEEPS", axis_friction.COUPLING_SWEEPS + 1)
+    assert kernel.library_key(kernel.source(), ["cc"]) != kernel.library_key(text, ["cc"])
+    assert kernel.library_key(text, ["cc"]) != kernel.library_key(text, ["clang"])
+
+
+@needs_compiler
+def test_a_fresh_simulation_loads_no_numba():
+    """The compiled closed loop runs without numba (nor SciPy, the gain schedule read from its cache):
+    a fresh process that runs an experiment twice has neither loaded; the readable plant's step
+    loads the numba model when it runs."""
+    code = ("import sys; from rcm_kin.simulation import run_experiment; from rcm_kin.simulation.experiments import "
+            "psm_plant_and_schedule; r = run_experiment('sine', 'scheduled', duration=0.5); "
+            "print(r.engine, 'numba' in sys.modules, 'scipy' in sys.modules); "
+            "plant = psm_plant_and_schedule()[0]; plant.step(plant.initial([0, 0, 0.1]), [0, 0, 0]); "
+            "print('numba' in sys.modules)")
+    runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+            for _ in range(2)]                   # the first may design and cache the schedule (SciPy)
+    assert runs[0][:2] == ["compiled", "False"]
+    assert runs[1] == ["compiled", "False", "False", "True"]
+
+
+@needs_compiler
+def test_the_kernel_library_is_cached_checked_and_rebuilt_once(tmp_path, monkeypatch):
+    """The kernel goes to the compiled-function cache with its checksum file, is loaded from it by a
+    new process (here: a cleared memo), and one damaged there is deleted and built anew with one
+    warning (:func:`rcm_kin.symbolic.compiled.build_library`)."""
+    from rcm_kin.errors import RcmKinWarning
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.setattr(kernel, "_LOADED", {})
+    assert kernel.available()
+    (built,) = (tmp_path / "rcm-kin" / "casadi").glob("rcm_kin_loop_*.so")
+    assert built.with_name(built.name + ".sha256").read_text().split()[1] == kernel.library_key(
+        kernel.source(), [os.environ.get("CC") or "cc"])
+    damaged = built.with_name("damaged")
+    damaged.write_bytes(built.read_bytes()[:1000])                  # truncated (by another process: this one
+    damaged.replace(built)                                          # has the library mapped)
+    monkeypatch.setattr(kernel, "_LOADED", {})
+    with pytest.warns(RcmKinWarning, match="does not match its SHA-256") as caught:
+        library = kernel.library()
+    assert len(caught) == 1 and library.rk_p_command(2.0, 3.0) == -6.0

@@ -10,6 +10,7 @@ __all__ = [
 
 __getattr__, __dir__, _ = lazy_loader.attach(
     __name__,
+    submodules=["stick_slip"],      # ``dynamics.stick_slip``: the numba model, loaded on first use
     submod_attrs={
         "drive": ["DriveParameters", "DriveEffort", "load_drive_parameters", "write_parameters", "drive_effort",
                   "robot_drive", "model_label"],

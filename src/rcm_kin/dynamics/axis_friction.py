@@ -1,6 +1,8 @@
 """The identified drive-train parameters of one axis (the stick-slip model's,
-:mod:`rcm_kin.dynamics.stick_slip`), in a module of their own so that reading a drive parameter
-file does not load the model's compiled kernels (numba)."""
+:mod:`rcm_kin.dynamics.stick_slip`) and the model's integration constants and state layout, in a
+module of their own so that reading a drive parameter file, or running the compiled closed loop
+(whose C twin of the model takes these numbers: :mod:`rcm_kin.simulation.kernel`), does not load
+the model's numba kernels."""
 
 from __future__ import annotations
 
@@ -11,6 +13,12 @@ import numpy as np
 from rcm_kin.errors import RcmKinError
 
 MAX_ELEMENTS = 4   # presliding (Maxwell-slip) elements at most: the kernels' state holds this many anchors
+STATE_SIZE = 4 + MAX_ELEMENTS   # one axis's state [theta, w, q, v, z_1 .. z_MAX_ELEMENTS]; unused anchors ignored
+SUBSTEP = 2.5e-4   # s: integration step
+COUPLING_SWEEPS = 4   # block Gauss-Seidel sweeps of the motor-cable-link step: each contracts the coupling
+                      # error by h^2 k_c / (J_m + h^2 k_c) x h^2 k_c / M (< 0.03 up to k_c = 1e6 N m/rad)
+# (stick_slip's numba kernels freeze MAX_ELEMENTS and COUPLING_SWEEPS when compiled, and numba keys its cache on
+# stick_slip.py alone: a change here needs stick_slip.py touched; the C kernel's key includes them)
 DISCRETE = ("presliding_elements",)   # model choices (whole numbers): never searched, sampled or differenced
 
 
@@ -53,3 +61,8 @@ class AxisFriction:
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+
+def substep_count(period: float) -> int:
+    """Integration substeps (each at most :data:`SUBSTEP` s) in one ``period`` s."""
+    return max(1, int(np.ceil(period / SUBSTEP - 1e-9)))

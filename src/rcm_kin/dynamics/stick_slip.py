@@ -50,7 +50,7 @@ import numba
 import numpy as np
 
 from rcm_kin import firmware_rules
-from rcm_kin.dynamics.axis_friction import MAX_ELEMENTS, AxisFriction
+from rcm_kin.dynamics.axis_friction import COUPLING_SWEEPS, MAX_ELEMENTS, STATE_SIZE, AxisFriction, substep_count
 from rcm_kin.errors import RcmKinError, as_numbers
 from rcm_kin.firmware_rules import quantise, saturate
 from rcm_kin.hardware import DRIVER_PWM_RANGE
@@ -59,12 +59,6 @@ if TYPE_CHECKING:
     from rcm_kin.dynamics.state_space import DrivenDynamics
 
 TERMS = ("viscous", "stiction", "presliding", "two_mass")
-SUBSTEP = 2.5e-4   # s: integration step
-COUPLING_SWEEPS = 4   # block Gauss-Seidel sweeps of the motor-cable-link step: each contracts the coupling
-                      # error by h^2 k_c / (J_m + h^2 k_c) x h^2 k_c / M (< 0.03 up to k_c = 1e6 N m/rad)
-
-
-STATE_SIZE = 4 + MAX_ELEMENTS   # one axis's state [theta, w, q, v, z_1 .. z_MAX_ELEMENTS]; unused anchors ignored
 NAMES = tuple(f.name for f in fields(AxisFriction))
 TERM_PARAMETERS = {   # what switching a term off zeroes
     "viscous": ("viscous",),            # off: sliding friction flat in speed (Coulomb level)
@@ -238,15 +232,12 @@ _run_closed = _keyed_run_closed(RULES)
 
 @numba.njit(cache=True)
 def advance(th, ku, kemf, Jm, gravity, inertia, pwm, state, period, substeps):
+    """One axis's ``state`` over ``period`` s in ``substeps`` with ``pwm``, ``gravity`` and ``inertia``
+    held (in place). The compiled closed loop has its declared C twin (:mod:`rcm_kin.simulation.kernel`)."""
     h = period / substeps
     n, unit = elements_of(th)
     for _ in range(substeps):
         _substep(state, th, n, unit, pwm, gravity, inertia, ku, kemf, Jm, h)
-
-
-def substep_count(period: float) -> int:
-    """Integration substeps (each at most :data:`SUBSTEP` s) in one ``period`` s."""
-    return max(1, int(np.ceil(period / SUBSTEP - 1e-9)))
 
 
 def advance_axis(friction_vector: np.ndarray, input_gain: float, back_emf: float, rotor_inertia: float,

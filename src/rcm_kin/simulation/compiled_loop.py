@@ -1,6 +1,7 @@
 """The whole closed loop in one compiled kernel: encoders, velocity estimate, controller law,
-saturation and the plant, tick after tick inside one numba function
-(:func:`rcm_kin.simulation.kernel.run`).
+saturation and the plant, tick after tick inside one C function
+(:func:`rcm_kin.simulation.kernel.run`, built and cached with the plant's CasADi functions: no
+numba in the process).
 
 The readable loop stays the reference (:func:`rcm_kin.simulation.loop.simulate` with the
 controllers of :mod:`rcm_kin.simulation.controllers` on a :class:`~rcm_kin.simulation.plant.Plant`);

@@ -5,9 +5,9 @@
 (:func:`rcm_kin.symbolic.compiled.loaded_library`) and called from the kernel through their C
 entry point (CasADi's ``f(arg, res, iw, w, mem)``) by address: the same expression graphs, no
 table. The drive-train plant evaluates its mass matrix and bias forces once per period and
-advances the stick-slip axes with the plant's own numba kernel; the smooth plant is its RK4
-period map. Where the functions cannot be compiled (no C compiler, unwritable cache),
-:func:`compiled_drive_train` and :func:`compiled_smooth` return None.
+advances the stick-slip axes with the kernel's C twin of the model's numba kernel; the smooth
+plant is its RK4 period map. Where the functions or the kernel cannot be compiled (no C compiler,
+unwritable cache), :func:`compiled_drive_train` and :func:`compiled_smooth` return None.
 """
 
 from __future__ import annotations
@@ -20,9 +20,9 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from rcm_kin.dynamics.stick_slip import substep_count
+from rcm_kin.dynamics.axis_friction import substep_count
 from rcm_kin.errors import RcmKinError
-from rcm_kin.simulation.kernel import DRIVE_TRAIN, SMOOTH, plant_steps
+from rcm_kin.simulation.kernel import DRIVE_TRAIN, SMOOTH, available, plant_steps
 from rcm_kin.symbolic.compiled import loaded_library
 
 if TYPE_CHECKING:
@@ -68,7 +68,7 @@ class CompiledPlant:
 
     - ``DRIVE_TRAIN``: :class:`~rcm_kin.simulation.plant.DriveTrainPlant` (x (3 STATE_SIZE,)); functions:
       mass matrix ``q -> M`` (3 x 3, column-major), bias ``(q, v) -> h`` (3,); the stick-slip axes
-      by :func:`rcm_kin.dynamics.stick_slip.advance`;
+      by the kernel's twin of :func:`rcm_kin.dynamics.stick_slip.advance`;
     - ``SMOOTH``: the smooth model's period map ``(x, u) -> x(T)`` (x (6,),
       :func:`rcm_kin.simulation.plant.period_map`)."""
 
@@ -114,12 +114,13 @@ class CompiledPlant:
 
 
 def compiled_drive_train(plant: DriveTrainPlant) -> CompiledPlant | None:
-    """``plant`` with its rigid-body functions compiled to C, or None when they cannot be (the
-    compiled functions say so once, with a warning: :mod:`rcm_kin.symbolic.compiled`)."""
+    """``plant`` with its rigid-body functions compiled to C, or None when they or the kernel
+    (:mod:`rcm_kin.simulation.kernel`) cannot be (the compiled functions say so once, with a
+    warning: :mod:`rcm_kin.symbolic.compiled`)."""
     if plant.model.mass_matrix.size_out(0) != (3, 3) or plant.model.bias.size_out(0) != (3, 1):
         raise RcmKinError("the compiled loop is written for three driven joints")
     mass_matrix, bias = c_function(plant.model.mass_matrix), c_function(plant.model.bias)
-    if mass_matrix is None or bias is None:
+    if mass_matrix is None or bias is None or not available():
         return None
     return CompiledPlant(DRIVE_TRAIN, (mass_matrix, bias), plant.period, plant, substep_count(plant.period))
 
@@ -130,4 +131,4 @@ def compiled_smooth(period_map: ca.Function, period: float) -> CompiledPlant | N
     if period_map.size_in(0) != (6, 1) or period_map.size_in(1) != (3, 1) or period_map.size_out(0) != (6, 1):
         raise RcmKinError("the compiled loop is written for three driven joints: (x (6,), u (3,)) -> x (6,)")
     fn = c_function(period_map)
-    return None if fn is None else CompiledPlant(SMOOTH, (fn,), period)
+    return None if fn is None or not available() else CompiledPlant(SMOOTH, (fn,), period)

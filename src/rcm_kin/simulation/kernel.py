@@ -1,346 +1,274 @@
-"""The numba kernels of the compiled closed loop: the firmware's rules, the controller laws, the
-plant step and the loop over ticks.
+"""The compiled closed loop's kernel: the C of ``kernel.c`` (shipped beside this module), built
+once, cached and loaded with ``ctypes``: the firmware's rules, the controller laws, the plant step
+and the loop over ticks.
 
-Each firmware rule here is the declared twin of its plain statement in :mod:`rcm_kin.firmware_rules`,
-written in the same order of operations (so both engines give the same numbers; the friction
-feedforward's ``tanh`` is the C library's here and NumPy's own in the readable controller, 1 ulp apart
-at some arguments); ``tests/simulation/test_rules.py`` holds each twin to its statement on random
-inputs. :func:`command` runs the laws of :class:`~rcm_kin.simulation.kernel_forms.LoopLaw` as the
-readable controllers (:mod:`rcm_kin.simulation.controllers`) do.
+Each firmware rule in the C is the declared twin of its plain statement in
+:mod:`rcm_kin.firmware_rules`, and its drive-train axis the declared twin of the stick-slip
+model's numba kernel (:func:`rcm_kin.dynamics.stick_slip.advance`), written in the same order of
+operations (so the engines give the same numbers; the friction feedforward's ``tanh`` is the C
+library's here and NumPy's own in the readable controller, 1 ulp apart at some arguments);
+``tests/simulation/test_rules.py`` holds each twin to its original on random inputs. The functions
+here take the arguments the numba kernels they replace took, and the C does no bounds checks: the
+arrays' types are checked here, their shapes by :class:`~rcm_kin.simulation.kernel_forms.LoopLaw`
+and :class:`~rcm_kin.simulation.compiled_plant.CompiledPlant`, which make them.
 
-The plant's CasADi functions are called through their C entry point
-(``f(arg, res, iw, w, mem)``) by address (:func:`call_c`); the drive-train axes are advanced by
-the stick-slip model's own kernel (:func:`rcm_kin.dynamics.stick_slip.advance`).
-
-numba's on-disk cache keys a function on its own file only, not on the modules it inlines. What
-the kernel takes from other modules' source is therefore keyed explicitly: the plant step inlines
-the stick-slip kernels, and the laws test the kinds of :mod:`rcm_kin.simulation.kernel_forms`
-(``P``, ``PID``, ``THESIS``, frozen into the machine code), so the laws, the plant step and the
-loops over them are built in closures over :data:`SOURCES`, a hash of ``stick_slip.py``,
-``kernel_forms.py`` and ``firmware_rules.py`` (numba keys cached closures on their cell contents):
-a change to any of them compiles anew. The functions at this module's top level use nothing but
-this file. The other modules' numbers (``hardware.INSERTION_KP``, ``loop.FIRMWARE_SCALE``) are
-kernel arguments, never frozen into the cached machine code.
+The build: the numbers the C takes from Python modules (the stick-slip state's layout, the law
+kinds of :mod:`rcm_kin.simulation.kernel_forms`, the plant kinds here) are written as ``#define``
+lines before the C text (:func:`source`), and the library is cached by
+:func:`rcm_kin.symbolic.compiled.cached_library` under a SHA-256 of that whole text, the compile
+command and flags and the machine (:func:`library_key`): a changed constant, source or compiler
+builds anew, an unchanged one loads in milliseconds (no numba, no LLVM in the process). Without
+a C compiler there is no kernel (:func:`available` is False, with the compiled functions' one
+warning) and the loop runs readable (:mod:`rcm_kin.simulation.compiled_loop`).
 """
 
 from __future__ import annotations
 
-import hashlib
+import ctypes
+import dataclasses
+import os
 from pathlib import Path
 
-import numba
 import numpy as np
-from llvmlite import ir
-from numba import types
-from numba.extending import intrinsic
 
-from rcm_kin import firmware_rules
-from rcm_kin.dynamics import stick_slip
-from rcm_kin.dynamics.stick_slip import STATE_SIZE, advance
+from rcm_kin.dynamics import axis_friction
+from rcm_kin.errors import RcmKinError
 from rcm_kin.simulation import kernel_forms
-from rcm_kin.simulation.kernel_forms import PID, THESIS, P
+from rcm_kin.symbolic.compiled import COMPILE_FLAGS, cache_key, cached_library, load_library
 
 DRIVE_TRAIN, SMOOTH = 0, 1                         # CompiledPlant.kind
+FLAGS = (*COMPILE_FLAGS, "-ffp-contract=off")      # no fused multiply-adds: the Python side does none
+C_SOURCE = Path(__file__).with_name("kernel.c")
+INT64 = np.dtype(np.int64)
+
+_double, _int, _long, _pointer = ctypes.c_double, ctypes.c_int, ctypes.c_longlong, ctypes.c_void_p
+SIGNATURES = {   # entry point: (result, argument types), as kernel.c declares them
+    "rk_plant_steps": (_int, [_pointer, _pointer, _long, _long, _pointer, _pointer, _long, _pointer, _pointer, _long,
+                              _pointer, _pointer, _pointer, _double, _long]),
+    "rk_run": (_long, [_long, _long, _pointer, _long, _pointer, _pointer, _pointer, _pointer, _pointer, _pointer, _long,
+                       _pointer, _long, _double, _pointer, _pointer, _double, _int, _pointer, _double, _long, _pointer,
+                       _pointer, _pointer, _long, _pointer, _long, _pointer, _long, _pointer, _long, _pointer, _long,
+                       _pointer, _pointer, _long, _pointer, _pointer, _long, _pointer, _pointer, _pointer, _long,
+                       _pointer, _pointer, _pointer, _pointer]),
+    "rk_bilinear": (None, [_pointer, _long, _pointer, _long, _pointer, _long, _double, _double, _pointer, _long]),
+    "rk_conditional_integral": (_double, [_pointer, _double, _double, _double, _int, _int, _double, _double, _double,
+                                          _double]),
+    "rk_quantise": (None, [_pointer] * 4),
+    "rk_velocity_estimate": (None, [_pointer, _pointer, _pointer, _double, _double]),
+    "rk_saturate": (None, [_pointer, _pointer, _int, _pointer]),
+    "rk_p_command": (_double, [_double, _double]),
+    "rk_insertion_command": (_double, [_double, _double, _double]),
+    "rk_friction_feedforward": (_double, [_double, _double, _double]),
+    "rk_advance": (None, [_pointer, _double, _double, _double, _double, _double, _double, _pointer, _double, _long]),
+}
 
 
-# --- the firmware's rules: twins of rcm_kin.firmware_rules ------------------------------------
-
-@numba.njit(cache=True)
-def cell(grid, x):
-    """Twin of ``firmware_rules._cell``: the cell index (largest i with grid[i] <= x, at most
-    n - 2) and x clamped to the grid."""
-    x = min(max(x, grid[0]), grid[-1])
-    i = 0
-    while i + 2 < grid.size and grid[i + 1] <= x:
-        i += 1
-    return i, x
+def defines() -> dict[str, int]:
+    """The constants the C takes from the Python modules, by their ``#define`` names."""
+    return {"RK_STATE_SIZE": axis_friction.STATE_SIZE, "RK_MAX_ELEMENTS": axis_friction.MAX_ELEMENTS,
+            "RK_COUPLING_SWEEPS": axis_friction.COUPLING_SWEEPS, "RK_P": kernel_forms.P, "RK_PID": kernel_forms.PID,
+            "RK_STATE_FEEDBACK": kernel_forms.STATE_FEEDBACK, "RK_THESIS": kernel_forms.THESIS,
+            "RK_DRIVE_TRAIN": DRIVE_TRAIN, "RK_SMOOTH": SMOOTH}
 
 
-@numba.njit(cache=True)
-def bilinear(roll_grid, pitch_grid, table, roll, pitch, out):
-    """Twin of :func:`rcm_kin.firmware_rules.bilinear` (clamped, along roll on the two pitch
-    rows, then along pitch): every value of ``table[pitch][roll]`` at the pose into ``out``."""
-    i, r = cell(roll_grid, roll)
-    j, p = cell(pitch_grid, pitch)
-    fr = (r - roll_grid[i]) / (roll_grid[i + 1] - roll_grid[i])
-    fp = (p - pitch_grid[j]) / (pitch_grid[j + 1] - pitch_grid[j])
-    for m in range(out.size):
-        low = table[j, i, m] + (table[j, i + 1, m] - table[j, i, m]) * fr
-        high = table[j + 1, i, m] + (table[j + 1, i + 1, m] - table[j + 1, i, m]) * fr
-        out[m] = low + (high - low) * fp
+def source() -> str:
+    """The C the library is built from: :func:`defines` as ``#define`` lines, then ``kernel.c``."""
+    lines = [f"#define {name} {int(value)}" for name, value in defines().items()]
+    return "\n".join(["/* generated by rcm_kin.simulation.kernel from the Python constants */", *lines, ""]) + \
+        C_SOURCE.read_text()
 
 
-@numba.njit(cache=True)
-def integral_law(pid, with_feedforward, c1, c2, k_integral, integral, feedforward):
-    """The laws the kernel integrates, at ``E = integral``: the PID's ``-(c1 + Ki E + c2)``
-    (c1 = Kp e, c2 = Kd de) or the pitch's ``-(c1 + c2 + Ki E) [+ feedforward]`` (c2 = Kd v)."""
-    if pid:
-        return -(c1 + k_integral * integral + c2)
-    u = -(c1 + c2 + k_integral * integral)
-    return u + feedforward if with_feedforward else u
+def library_key(text: str, command: list[str]) -> str:
+    """The cache key of the library built from ``text`` (:func:`source`) by ``command`` with :data:`FLAGS`."""
+    return cache_key("rcm-kin closed-loop kernel", text, " ".join(command + list(FLAGS)))
 
 
-@numba.njit(cache=True)
-def conditional_integral(integral, error, period, limit, pid, with_feedforward, c1, c2, k_integral, feedforward):
-    """Twin of :func:`rcm_kin.firmware_rules.conditional_integral` with the law
-    :func:`integral_law`: ``(u, integral)``."""
-    candidate = integral + error * period
-    u = integral_law(pid, with_feedforward, c1, c2, k_integral, candidate, feedforward)
-    held = integral_law(pid, with_feedforward, c1, c2, k_integral, integral, feedforward)
-    if abs(u) > limit and np.sign(u) == np.sign(u - held):
-        return held, integral
-    return u, candidate
+_LOADED: dict[tuple[str, str], ctypes.CDLL | None] = {}      # ($CC, cache folder) -> the library, or None
+_RUNNING: list[ctypes.CDLL] = []                              # the library the entry points call, once loaded
 
 
-@numba.njit(cache=True)
-def quantise(position, count, noise, out):
-    """Twin of :func:`rcm_kin.firmware_rules.quantise`, into ``out``."""
-    for j in range(3):
-        if count[j] == 0.0:
-            out[j] = position[j]
-        else:
-            out[j] = (np.round(position[j] / count[j]) + noise[j]) * count[j]
+def library() -> ctypes.CDLL | None:
+    """The kernel's library, built and cached first if absent, its entry points typed; None without a
+    C compiler or a writable cache (a warning, once). Raises :class:`RcmKinError` when the compiler
+    fails on the C or the library does not load."""
+    key = (os.environ.get("CC") or "", os.environ.get("XDG_CACHE_HOME") or "")
+    if key not in _LOADED:
+        text = source()
+
+        def build():
+            return cached_library("rcm_kin_loop", lambda command: library_key(text, command), text, FLAGS)
+        path = build()
+        found = None if path is None else load_library(path, build, "closed-loop kernel")
+        if found is not None:
+            for name, (result, arguments) in SIGNATURES.items():
+                entry = getattr(found[1], name)
+                entry.restype, entry.argtypes = result, arguments
+        _LOADED[key] = None if found is None else found[1]
+        if found is not None and not _RUNNING:
+            _RUNNING.append(found[1])
+    return _LOADED[key]
 
 
-@numba.njit(cache=True)
-def velocity_estimate(measured, previous, filtered, period, roll_filter):
+def available() -> bool:
+    """Whether the kernel can run here (:func:`library` built or loaded)."""
+    return library() is not None
+
+
+def _kernel() -> ctypes.CDLL:
+    """The library the entry points call: the first loaded in the process (a library stays valid
+    whatever ``$CC`` says later), else :func:`library` now."""
+    found = _RUNNING[0] if _RUNNING else library()
+    if found is None:
+        raise RcmKinError("the compiled closed loop needs a C compiler (set CC); run the readable loop instead")
+    return found
+
+
+def _address(array: np.ndarray, name: str, dtype=np.dtype(np.float64), writable: bool = False) -> int:
+    """The address of ``array``'s data, or an error unless it is a C-contiguous array of ``dtype``
+    (and writable when the kernel writes it): the C reads it as such, unchecked."""
+    if not (isinstance(array, np.ndarray) and (array.dtype is dtype or array.dtype == dtype)
+            and array.flags.c_contiguous and (array.flags.writeable or not writable)):
+        raise RcmKinError(f"the kernel's `{name}` is a C-contiguous{' writable' if writable else ''} {np.dtype(dtype)} "
+                          f"array, got {getattr(array, 'dtype', type(array).__name__)}", parameter=name)
+    return array.ctypes.data
+
+
+_PLANTS: dict[int, tuple[tuple, list]] = {}     # id(addresses) -> (the plant's arrays, their kernel arguments)
+
+
+def _plant(kind, addresses, work, parameters, friction, input_gain, damping, reflected_inertia) -> list:
+    """The plant's arguments of ``rk_plant_steps`` and ``rk_run`` after its kind, made once per plant
+    (a :class:`~rcm_kin.simulation.compiled_plant.CompiledPlant` passes the same arrays every step: the
+    memo holds them, so their ids stay theirs)."""
+    arrays = (addresses, work, parameters, friction, input_gain, damping, reflected_inertia)
+    known = _PLANTS.get(id(addresses))
+    if known is not None and known[1][0] == kind and all(a is b for a, b in zip(known[0], arrays)):
+        return known[1]
+    if len(addresses) < (1 if kind == SMOOTH else 2) or work.ndim != 2 or work.shape[1] != 4 or friction.ndim != 2:
+        raise RcmKinError("the kernel's plant needs its functions' addresses and work sizes (k, 4) and friction "
+                          "(3, n)", parameter="addresses")
+    made = [int(kind), _address(addresses, "addresses", INT64), _address(work, "work", INT64), work.shape[0],
+            _address(parameters, "parameters"), _address(friction, "friction"), friction.shape[1],
+            _address(input_gain, "input_gain"), _address(damping, "damping"),
+            _address(reflected_inertia, "reflected_inertia")]
+    if len(_PLANTS) >= 64:
+        _PLANTS.clear()
+    _PLANTS[id(addresses)] = (arrays, made)
+    return made
+
+
+def _state(x: np.ndarray, kind: int) -> int:
+    size = 6 if kind == SMOOTH else 3 * axis_friction.STATE_SIZE
+    if getattr(x, "shape", None) != (size,):
+        raise RcmKinError(f"the plant's state `x` has {size} values, got shape {getattr(x, 'shape', None)}",
+                          parameter="x")
+    return _address(x, "x", writable=True)
+
+
+def plant_steps(x, u, kind, addresses, work, parameters, friction, input_gain, damping, reflected_inertia, period,
+                substeps) -> None:
+    """One plant step per row of ``u`` (n, 3), ``x`` in place (``CompiledPlant.kernel_arguments``)."""
+    u = np.ascontiguousarray(u, dtype=float).reshape(-1, 3)
+    status = _kernel().rk_plant_steps(_state(x, kind), u.ctypes.data, u.shape[0], *_plant(
+        kind, addresses, work, parameters, friction, input_gain, damping, reflected_inertia), float(period),
+        int(substeps))
+    if status != 0:
+        raise RcmKinError("the kernel could not allocate the plant's buffers")
+
+
+def run(first, stop, x, previous, filtered, memory, ref_fw, vel_fw, acc_fw, noise, period, limit, count, roll_filter,
+        quantise_pwm, scale, insertion_kp, kind, flags, gains, roll_grid, pitch_grid, table, hold_table, friction_ff,
+        plant_kind, addresses, work, parameters, friction, input_gain, damping, reflected_inertia, substeps,
+        log_measured, log_position, log_command, log_pwm) -> int:
+    """Ticks ``first .. stop - 1`` of ``loop.simulate`` (k < 0: settling); the loop's state
+    (x, previous, filtered, memory) advanced in place, the ticks k >= 0 logged; ``scale`` (3,):
+    joint units to firmware units (``loop.FIRMWARE_SCALE``), ``insertion_kp``: the insertion's
+    P gain (counts/m). Returns the tick where the state stopped being finite, or ``stop``."""
+    n = ref_fw.shape[0]
+    if not (-(noise.shape[0] - n - 1) <= first <= stop <= n and vel_fw.shape == acc_fw.shape == ref_fw.shape == (n, 3)
+            and noise.shape[1:] == (3,) and all(log.shape == (n, 3) for log in (log_measured, log_position,
+                                                                                 log_command, log_pwm))):
+        raise RcmKinError(f"the kernel's ticks {first} .. {stop} do not fit the reference ({n} ticks), the noise "
+                          f"({noise.shape[0]} readings) or the logs", parameter="first")
+    scalars = np.ascontiguousarray([scale, limit, count], dtype=float)      # (3, 3), alive through the call
+    end = _kernel().rk_run(
+        int(first), int(stop), _state(x, plant_kind), x.size, _address(previous, "previous", writable=True),
+        _address(filtered, "filtered", writable=True), _address(memory, "memory", writable=True),
+        _address(ref_fw, "ref_fw"), _address(vel_fw, "vel_fw"), _address(acc_fw, "acc_fw"), n,
+        _address(noise, "noise"), noise.shape[0], float(period), scalars[1:].ctypes.data, scalars[2:].ctypes.data,
+        float(roll_filter), int(bool(quantise_pwm)), scalars.ctypes.data, float(insertion_kp), int(kind),
+        _address(flags, "flags", np.dtype(np.bool_)), _address(gains, "gains"), _address(roll_grid, "roll_grid"),
+        roll_grid.size, _address(pitch_grid, "pitch_grid"), pitch_grid.size, _address(table, "table"), table.shape[-1],
+        _address(hold_table, "hold_table"), hold_table.shape[-1], _address(friction_ff, "friction_ff"),
+        *_plant(plant_kind, addresses, work, parameters, friction, input_gain, damping, reflected_inertia),
+        int(substeps), *(_address(log, "log", writable=True) for log in (log_measured, log_position, log_command,
+                                                                          log_pwm)))
+    if end == first - 1:
+        raise RcmKinError("the kernel could not allocate the plant's buffers")
+    return end
+
+
+# --- the rules and the stick-slip axis alone (the twins' tests) -----------------------------------
+
+def bilinear(roll_grid, pitch_grid, table, roll, pitch, out) -> None:
+    """Twin of :func:`rcm_kin.firmware_rules.bilinear`: every value of ``table[pitch][roll]`` at the
+    pose into ``out``."""
+    _kernel().rk_bilinear(_address(roll_grid, "roll_grid"), roll_grid.size, _address(pitch_grid, "pitch_grid"),
+                          pitch_grid.size, _address(table, "table"), table.shape[-1], float(roll), float(pitch),
+                          _address(out, "out", writable=True), min(out.size, table.shape[-1]))
+
+
+def conditional_integral(integral, error, period, limit, pid, with_feedforward, c1, c2, k_integral,
+                         feedforward) -> tuple[float, float]:
+    """Twin of :func:`rcm_kin.firmware_rules.conditional_integral` with the kernel's integral laws:
+    ``(u, integral)``."""
+    value = ctypes.c_double(integral)
+    u = _kernel().rk_conditional_integral(ctypes.byref(value), error, period, limit, int(pid), int(with_feedforward),
+                                          c1, c2, k_integral, feedforward)
+    return u, value.value
+
+
+def quantise(position, count, noise, out) -> None:
+    """Twin of :func:`rcm_kin.firmware_rules.quantise` of the three axes, into ``out``."""
+    _kernel().rk_quantise(_address(position, "position"), _address(count, "count"), _address(noise, "noise"),
+                          _address(out, "out", writable=True))
+
+
+def velocity_estimate(measured, previous, filtered, period, roll_filter) -> None:
     """Twin of :func:`rcm_kin.firmware_rules.velocity_estimate`, ``filtered`` updated in place."""
-    raw0 = (measured[0] - previous[0]) / period
-    filtered[0] = roll_filter * filtered[0] + (1 - roll_filter) * raw0
-    filtered[1] = (measured[1] - previous[1]) / period
-    filtered[2] = (measured[2] - previous[2]) / period
+    _kernel().rk_velocity_estimate(_address(measured, "measured"), _address(previous, "previous"),
+                                   _address(filtered, "filtered", writable=True), period, roll_filter)
 
 
-@numba.njit(cache=True)
-def saturate(command, limit, whole_counts, out):
+def saturate(command, limit, whole_counts, out) -> None:
     """Twin of :func:`rcm_kin.firmware_rules.saturate`, into ``out``."""
-    for j in range(3):
-        out[j] = min(max(command[j], -limit[j]), limit[j])
-        if whole_counts:
-            out[j] = np.trunc(out[j])
+    _kernel().rk_saturate(_address(command, "command"), _address(limit, "limit"), int(bool(whole_counts)),
+                          _address(out, "out", writable=True))
 
 
-@numba.njit(cache=True)
-def p_command(kp, error):
+def p_command(kp, error) -> float:
     """Twin of :func:`rcm_kin.firmware_rules.p_command`: ``-Kp e``."""
-    return -kp * error
+    return _kernel().rk_p_command(kp, error)
 
 
-@numba.njit(cache=True)
-def insertion_command(reference, measured, kp):
-    """Twin of :func:`rcm_kin.firmware_rules.insertion_command`: ``Kp (r - y)`` (``kp`` counts/m)."""
-    return kp * (reference - measured)
+def insertion_command(reference, measured, kp) -> float:
+    """Twin of :func:`rcm_kin.firmware_rules.insertion_command`: ``Kp (r - y)``."""
+    return _kernel().rk_insertion_command(reference, measured, kp)
 
 
-@numba.njit(cache=True)
-def friction_feedforward(amplitude, ramp, rdot):
-    """Twin of :meth:`rcm_kin.control.friction.FrictionCompensation.feedforward` for
-    one axis: ``-F tanh(rdot / v_ramp)`` counts (``amplitude`` F, ``ramp`` v_ramp deg/s)."""
-    return -amplitude * np.tanh(rdot / ramp)
+def friction_feedforward(amplitude, ramp, rdot) -> float:
+    """Twin of :meth:`rcm_kin.control.friction.FrictionCompensation.feedforward` for one axis:
+    ``-F tanh(rdot / v_ramp)`` counts."""
+    return _kernel().rk_friction_feedforward(amplitude, ramp, rdot)
 
 
-SOURCES = hashlib.sha256(b"".join(Path(m.__file__).read_bytes()
-                                  for m in (stick_slip, kernel_forms, firmware_rules))).hexdigest()
-"""The key of the cached kernels that inline other modules' code (see the module notes)."""
-
-
-# --- the controller laws ------------------------------------------------------------------------
-
-def _keyed_laws(sources: str):
-    """The laws, compiled in a closure over ``sources`` (:data:`SOURCES`): the kinds they test
-    are :mod:`rcm_kin.simulation.kernel_forms`' constants, frozen into the cached code."""
-
-    @numba.njit(cache=True)
-    def gain_scheduled(kind, flags, roll_grid, pitch_grid, table, hold_table, friction, memory, measured, velocity,
-                       reference, rdot, racc, period, limit, scratch, command):
-        """The thesis and state-feedback laws (``ThesisController``, ``StateFeedbackController``)."""
-        if len(sources) == 0:              # the closure's key (never empty)
-            return
-        e0, e1 = reference[0] - measured[0], reference[1] - measured[1]
-        scheduled, gravity, track, compensate = flags[0], flags[1], flags[2], flags[3]
-        at0, at1 = (measured[0], measured[1]) if (scheduled or kind == THESIS) else (0.0, 0.0)
-        k = scratch[:7]
-        bilinear(roll_grid, pitch_grid, table, at0, at1, k)
-        v0, v1 = velocity[0], velocity[1]
-        if kind == THESIS:
-            command[0] = -(k[0] * e0 + k[1] * v0)
-            command[1], memory[0] = conditional_integral(memory[0], e1, period, limit[1], False, False,
-                                                         k[2] * e1, k[3] * v1, k[4], 0.0)
-            return
-        if track:
-            v0, v1 = v0 - rdot[0], v1 - rdot[1]
-        hold = scratch[7:9]
-        if gravity:
-            bilinear(roll_grid, pitch_grid, hold_table, reference[0], reference[1], hold)
-        else:
-            hold[0], hold[1] = 0.0, 0.0
-        if compensate:
-            hold[0] = hold[0] + friction_feedforward(friction[0], friction[2], rdot[0])
-            hold[1] = hold[1] + friction_feedforward(friction[1], friction[2], rdot[1])
-        command[0] = -(k[0] * e0 + k[1] * v0) + hold[0]
-        feedforward = k[5] * rdot[1] + k[6] * racc[1] + hold[1]
-        command[1], memory[0] = conditional_integral(memory[0], e1, period, limit[1], False, True,
-                                                     k[2] * e1, k[3] * v1, k[4], feedforward)
-
-    @numba.njit(cache=True)
-    def command(kind, flags, gains, roll_grid, pitch_grid, table, hold_table, friction, memory, measured, velocity,
-                reference, rdot, racc, period, limit, insertion_kp, scratch, out):
-        """The controller's ``command`` (firmware units, before saturation) into ``out``; ``memory``
-        updated in place; the insertion by its P loop (``insertion_kp`` counts/m)."""
-        if len(sources) == 0:
-            return
-        e0, e1 = reference[0] - measured[0], reference[1] - measured[1]
-        if kind == P:
-            out[0] = p_command(gains[0], e0)
-            out[1] = p_command(gains[1], e1)
-        elif kind == PID:                                    # memory: integrals, previous errors
-            e = (e0, e1)
-            for i in range(2):
-                de = 0.0 if np.isnan(memory[2 + i]) else (e[i] - memory[2 + i]) / period
-                out[i], memory[i] = conditional_integral(memory[i], e[i], period, limit[i], True, False,
-                                                         gains[i] * e[i], gains[4 + i] * de, gains[2 + i], 0.0)
-            memory[2], memory[3] = e0, e1
-        else:                                                # STATE_FEEDBACK or THESIS
-            gain_scheduled(kind, flags, roll_grid, pitch_grid, table, hold_table, friction, memory, measured,
-                           velocity, reference, rdot, racc, period, limit, scratch, out)
-        out[2] = insertion_command(reference[2], measured[2], insertion_kp)
-
-    return gain_scheduled, command
-
-
-gain_scheduled, command = _keyed_laws(SOURCES)
-
-
-# --- the plant ----------------------------------------------------------------------------------
-
-@intrinsic
-def call_c(typingctx, address, arg, res, iw, w):
-    """``((int (*)(double**, double**, long long*, double*, int)) address)(arg, res, iw, w, 0)``,
-    every pointer given as an integer address."""
-    if not all(isinstance(t, types.Integer) for t in (address, arg, res, iw, w)):
-        return None
-    signature = types.int32(address, arg, res, iw, w)
-
-    def codegen(context, builder, sig, args):
-        pointer = ir.IntType(8).as_pointer()
-        fnty = ir.FunctionType(ir.IntType(32), [pointer] * 4 + [ir.IntType(32)])
-        fn = builder.inttoptr(args[0], fnty.as_pointer())
-        return builder.call(fn, [builder.inttoptr(a, pointer) for a in args[1:]] + [ir.Constant(ir.IntType(32), 0)])
-    return signature, codegen
-
-
-def _keyed_plant_step(physics: str):
-    """The plant step compiled in a closure over ``physics`` (:data:`SOURCES`), so numba's cache
-    keys it on the drive-train model it inlines."""
-
-    @numba.njit(cache=True)
-    def plant_step(kind, x, u, addresses, parameters, friction, input_gain, damping, reflected_inertia, period,
-                   substeps, buffers, arg, res, iw, w, axis):
-        """One period of the plant (``DriveTrainPlant.step`` or the smooth period map) under
-        ``u`` (3,), x advanced in place. Each function gets ``parameters`` in the slot after its own
-        inputs (a parametric function's last input; a function without one ignores the slot)."""
-        if len(physics) == 0:          # the closure's key (never empty)
-            return
-        if kind == SMOOTH:             # x (6,) -> period_map(x, u)
-            out = buffers[18:24]
-            arg[0], arg[1], arg[2], res[0] = x.ctypes.data, u.ctypes.data, parameters.ctypes.data, out.ctypes.data
-            call_c(addresses[0], arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
-            x[:] = out
-            return
-        q, v, M, h = buffers[0:3], buffers[3:6], buffers[6:15], buffers[15:18]
-        for i in range(3):
-            q[i], v[i] = x[6 + i], x[9 + i]
-        arg[0], arg[1], res[0] = q.ctypes.data, parameters.ctypes.data, M.ctypes.data
-        call_c(addresses[0], arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
-        arg[0], arg[1], arg[2], res[0] = q.ctypes.data, v.ctypes.data, parameters.ctypes.data, h.ctypes.data
-        call_c(addresses[1], arg.ctypes.data, res.ctypes.data, iw.ctypes.data, w.ctypes.data)
-        for i in range(3):
-            for r in range(STATE_SIZE):
-                axis[r] = x[3 * r + i]
-            advance(friction[i], input_gain[i], damping[i], reflected_inertia[i], h[i],
-                    M[4 * i] - reflected_inertia[i], u[i], axis, period, substeps)
-            for r in range(STATE_SIZE):
-                x[3 * r + i] = axis[r]
-
-    return plant_step
-
-
-@numba.njit(cache=True)
-def work_buffers(work):
-    """Buffers of the plant step: q, v, M, h, x(T) values, CasADi's arg, res, iw and w (``work``
-    (k, 4): each function's sizes; arg at least 3 slots, for the parameters after two inputs). (The
-    axis state's buffer, of the stick-slip model's ``STATE_SIZE``, is made by the keyed loops: this
-    function is keyed on this file alone.)"""
-    size = np.array([3, 2, 2, 2], dtype=np.int64)
-    for row in work:
-        size = np.maximum(size, row)
-    return (np.zeros(24), np.zeros(size[0], dtype=np.int64), np.zeros(size[1], dtype=np.int64),
-            np.zeros(size[2], dtype=np.int64), np.zeros(size[3]))
-
-
-plant_step = _keyed_plant_step(SOURCES)
-
-
-# --- the loops ----------------------------------------------------------------------------------
-
-def _keyed_loops(physics: str):
-    """The loops over :data:`plant_step`, keyed like it (see :func:`_keyed_plant_step`)."""
-
-    @numba.njit(cache=True)
-    def plant_steps(x, u, kind, addresses, work, parameters, friction, input_gain, damping, reflected_inertia,
-                    period, substeps):
-        """One plant step per row of ``u`` (n, 3), x in place."""
-        if len(physics) == 0:
-            return
-        buffers, arg, res, iw, w = work_buffers(work)
-        axis = np.zeros(STATE_SIZE)
-        for k in range(u.shape[0]):
-            plant_step(kind, x, u[k], addresses, parameters, friction, input_gain, damping, reflected_inertia,
-                       period, substeps, buffers, arg, res, iw, w, axis)
-
-    @numba.njit(cache=True)
-    def run(first, stop, x, previous, filtered, memory, ref_fw, vel_fw, acc_fw, noise, period, limit, count,
-            roll_filter, quantise_pwm, scale, insertion_kp, kind, flags, gains, roll_grid, pitch_grid, table,
-            hold_table, friction_ff, plant_kind, addresses, work, parameters, friction, input_gain, damping,
-            reflected_inertia, substeps, log_measured, log_position, log_command, log_pwm):
-        """Ticks ``first .. stop - 1`` of ``loop.simulate`` (k < 0: settling); the loop's state
-        (x, previous, filtered, memory) advanced in place, the ticks k >= 0 logged; ``scale`` (3,):
-        joint units to firmware units (``loop.FIRMWARE_SCALE``), ``insertion_kp``: the insertion's
-        P gain (counts/m). Returns the tick where the state stopped being finite, or ``stop``."""
-        if len(physics) == 0:
-            return first
-        buffers, arg, res, iw, w = work_buffers(work)
-        axis = np.zeros(STATE_SIZE)
-        true, measured, out, u = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-        rdot, racc, scratch = np.zeros(3), np.zeros(3), np.zeros(9)
-        n_settle = noise.shape[0] - ref_fw.shape[0] - 1
-        for k in range(first, stop):
-            i = max(k, 0)
-            moving = k >= 0
-            for j in range(3):
-                true[j] = x[j] * scale[j]
-            quantise(true, count, noise[k + n_settle + 1], measured)
-            velocity_estimate(measured, previous, filtered, period, roll_filter)
-            for j in range(3):
-                rdot[j] = vel_fw[i, j] if moving else 0.0
-                racc[j] = acc_fw[i, j] if moving else 0.0
-            command(kind, flags, gains, roll_grid, pitch_grid, table, hold_table, friction_ff, memory, measured,
-                    filtered, ref_fw[i], rdot, racc, period, limit, insertion_kp, scratch, out)
-            saturate(out, limit, quantise_pwm, u)
-            if moving:
-                for j in range(3):
-                    log_measured[k, j], log_position[k, j] = measured[j], true[j]
-                    log_command[k, j], log_pwm[k, j] = out[j], u[j]
-            plant_step(plant_kind, x, u, addresses, parameters, friction, input_gain, damping, reflected_inertia,
-                       period, substeps, buffers, arg, res, iw, w, axis)
-            for j in range(x.size):
-                if not np.isfinite(x[j]):
-                    return k
-            for j in range(3):
-                previous[j] = measured[j]
-        return stop
-
-    return plant_steps, run
-
-
-plant_steps, run = _keyed_loops(SOURCES)
+def advance(th, ku, kemf, Jm, gravity, inertia, pwm, state, period, substeps) -> None:
+    """Twin of :func:`rcm_kin.dynamics.stick_slip.advance`: one axis's ``state`` (:data:`STATE_SIZE`)
+    advanced over ``period`` s in ``substeps`` with ``pwm`` held (in place)."""
+    size = len(dataclasses.fields(axis_friction.AxisFriction))
+    if getattr(state, "shape", None) != (axis_friction.STATE_SIZE,) or getattr(th, "shape", None) != (size,):
+        raise RcmKinError(f"an axis `state` has {axis_friction.STATE_SIZE} values and its friction vector {size}",
+                          parameter="state")
+    _kernel().rk_advance(_address(th, "th"), ku, kemf, Jm, gravity, inertia, pwm, _address(state, "state",
+                                                                                            writable=True),
+                         period, int(substeps))

@@ -21,9 +21,10 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 import casadi as ca
 import numpy as np
 
+from rcm_kin import dynamics
+from rcm_kin.dynamics.axis_friction import MAX_ELEMENTS, STATE_SIZE, AxisFriction
 from rcm_kin.dynamics.drive import DRIVEN, DriveParameters, JointDrive, with_joint
 from rcm_kin.dynamics.state_space import DrivenDynamics, driven_dynamics
-from rcm_kin.dynamics.stick_slip import MAX_ELEMENTS, STATE_SIZE, AxisFriction, advance_axis
 from rcm_kin.errors import RcmKinError
 from rcm_kin.simulation.compiled_plant import CompiledPlant, compiled_drive_train, compiled_smooth
 from rcm_kin.symbolic.integrators import rk4_map
@@ -68,7 +69,12 @@ class DriveTrainPlant:
     are the link's, ``z_i`` the presliding elements' anchors. Each period the rigid-body mass
     matrix and bias forces (gravity, Coriolis) are evaluated at the period's start and held; the
     axes are coupled through them, not through the off-diagonal inertia within a period (which
-    the drive inertia and friction dominate over 2.5 ms)."""
+    the drive inertia and friction dominate over 2.5 ms).
+
+    :meth:`step` advances the axes with the model's numba kernel
+    (:func:`rcm_kin.dynamics.stick_slip.advance_axis`), loaded on the first step (the package's lazy
+    ``dynamics.stick_slip``): the compiled loop, which runs this plant's kernel form
+    (:meth:`kernel_plant`, the C twin of that kernel), never loads numba."""
 
     model: DrivenDynamics                 # rigid body + drive, without identified extras
     friction: np.ndarray                  # (3, n) AxisFriction vectors, DRIVEN order
@@ -84,7 +90,7 @@ class DriveTrainPlant:
         q, v = state[2], state[3]
         M = np.array(self.model.mass_matrix(q))
         bias = np.array(self.model.bias(q, v)).ravel()
-        d = self.model.drive
+        d, advance_axis = self.model.drive, dynamics.stick_slip.advance_axis     # the numba model, loaded here
         for i in range(3):
             axis = np.ascontiguousarray(state[:, i])
             advance_axis(self.friction[i], d.input_gain[i], d.damping[i], d.reflected_inertia[i], bias[i],

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from rcm_kin.dynamics.axis_friction import substep_count
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.parametric import ParametricDynamics, parametric_dynamics, structure_key
-from rcm_kin.dynamics.stick_slip import substep_count
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model import load_robot
 from rcm_kin.simulation.compiled_plant import CFunction, CompiledPlant, c_function

@@ -141,11 +141,24 @@ def compiled_library(fn: ca.Function) -> Path | None:
     interface under ``fn.name()``: ``int name(const double** arg, double** res, long long* iw,
     double* w, int mem)`` and ``name_work`` for the sizes; None when no C compiler is found or
     the cache folder cannot be written (a warning, as :func:`compiled`)."""
+    def source() -> str:
+        generator = ca.CodeGenerator(f"{fn.name()}.c", {"with_header": False})
+        generator.add(_merged(fn))
+        return generator.dump()
+    return cached_library(fn.name(), lambda command: function_key(fn, command), source)
+
+
+def cached_library(name: str, key: Callable[[list[str]], str], source: str | Callable[[], str],
+                   flags: tuple[str, ...] = COMPILE_FLAGS) -> Path | None:
+    """:func:`build_library` of the C ``source`` with the compiler of :func:`compiler_command`, under
+    ``key(command)`` (a :func:`cache_key` with the command and ``flags`` among its parts); None when
+    no C compiler is found or the cache folder cannot be written (a
+    :class:`~rcm_kin.errors.CompilerFallbackWarning`, once per reason and process)."""
     command = compiler_command()
     if not command or not _available(command[0]):
         return None
     try:
-        return _build(fn, command)
+        return build_library(name, key(command), source, command, flags)
     except OSError as exc:
         _warn(f"cannot write the compiled-function cache {cache_folder()} ({exc.strerror})")
         return None
@@ -154,15 +167,6 @@ def compiled_library(fn: ca.Function) -> Path | None:
 @functools.lru_cache(maxsize=64)
 def _load(name: str, library: Path) -> ca.Function:
     return ca.external(name, str(library))
-
-
-def _build(fn: ca.Function, command: list[str]) -> Path:
-    """The cached shared library of ``fn``, compiled first if absent (the C is generated only then)."""
-    def source() -> str:
-        generator = ca.CodeGenerator(f"{fn.name()}.c", {"with_header": False})
-        generator.add(_merged(fn))
-        return generator.dump()
-    return build_library(fn.name(), function_key(fn, command), source, command)
 
 
 def build_library(name: str, key: str, source: str | Callable[[], str], command: list[str],
