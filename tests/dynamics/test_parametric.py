@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from rcm_kin.control.linearization import linearize_grid
 from rcm_kin.dynamics.drive import with_joint
 from rcm_kin.dynamics.parametric import FUNCTIONS, parametric_dynamics, shared_model, structure_key
 from rcm_kin.dynamics.state_space import TERM_NAMES, driven_dynamics
@@ -89,3 +90,16 @@ def test_sets_of_one_structure_share_one_model(psm, params):
     assert structure_key(psm, other) == structure_key(psm, params)
     assert shared_model(psm, params, coulomb=False) is shared_model(psm, other, coulomb=False)
     assert shared_model(psm, params, coulomb=False) is not shared_model(psm, params, coulomb=True)
+
+
+def test_a_bound_compiled_model_linearises_compiled_or_not(psm, params, drawn_sets):
+    """A bound model calls compiled code already: ``linearize_grid`` with its default ``compile``
+    uses it as it is (no second code generation), the same matrices as the model built per set."""
+    model = shared_model(psm, params, coulomb=False, compile_names=("gravity", "jacobians")).bind(drawn_sets[0])
+    Q = np.array([[0.1, -0.2, 0.08], [-0.3, 0.25, 0.1]])
+    reference = linearize_grid(driven_dynamics(psm, drawn_sets[0], coulomb=False), Q, compile=False)
+    for compile_ in (True, False):
+        grid = linearize_grid(model, Q, compile=compile_)
+        np.testing.assert_array_equal(grid.A, reference.A)
+        np.testing.assert_array_equal(grid.B, reference.B)
+        np.testing.assert_array_equal(grid.u0, reference.u0)

@@ -52,8 +52,8 @@ def plants(request, psm, params, reference_plant):
 
 @needs_compiler
 def test_plant_step_equals_the_reference_plant(plants):
-    """One period from varied states and PWMs: the C model functions called from numba (and the
-    stick-slip kernel), against ``DriveTrainPlant.step`` or the smooth period map (interpreted
+    """One period from varied states and PWMs: the C model functions called from the C kernel (and its
+    stick-slip twin), against ``DriveTrainPlant.step`` or the smooth period map (interpreted
     CasADi), to 1e-12."""
     step, initial, fast, _ = plants
     rng = np.random.default_rng(1)

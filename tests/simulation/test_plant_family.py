@@ -69,3 +69,28 @@ def test_a_set_of_the_other_kind_is_refused(params):
     with pytest.raises(RcmKinError, match="with identified drive trains") as error:
         family.plant(smooth(params))
     assert error.value.parameter == "params"
+
+
+def test_a_compiled_plant_that_does_not_fit_its_kind_is_refused(params):
+    """The C kernel reads what the functions' shapes say, unchecked: a hand-made plant with a
+    function short, parameters of the wrong size or no drive train is refused before any call."""
+    good = family_of(params, PERIOD).plant(params)
+    cases = [(dict(functions=good.functions[:1]), "functions"),
+             (dict(parameters=good.parameters[:2]), "parameters"),
+             (dict(parameters=np.zeros(0)), "parameters"),
+             (dict(drive_train=None), "drive_train"),
+             (dict(functions=good.functions[::-1]), "functions")]
+    for change, parameter in cases:
+        with pytest.raises(RcmKinError) as error:
+            replace(good, **change)
+        assert error.value.parameter == parameter, change
+
+
+@pytest.mark.parametrize("params_arg, period, parameter", [("params.toml", PERIOD, "params"), (None, "abc", "period"),
+                                                           (None, -PERIOD, "period"), (None, float("nan"), "period")])
+def test_bad_family_arguments_are_one_line_errors(params, params_arg, period, parameter):
+    with pytest.raises(RcmKinError) as error:
+        plant_family(params if params_arg is None else params_arg, period)
+    assert error.value.parameter == parameter and "\n" not in str(error.value)
+    with pytest.raises(RcmKinError):
+        family_of(params if params_arg is None else params_arg, period)

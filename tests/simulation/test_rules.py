@@ -8,6 +8,7 @@ The stick-slip axis's closed loop compiles the statements themselves
 from __future__ import annotations
 
 import functools
+import hashlib
 import os
 import shutil
 import subprocess
@@ -283,3 +284,5 @@ def test_the_kernel_library_is_cached_checked_and_rebuilt_once(tmp_path, monkeyp
     with pytest.warns(RcmKinWarning, match="does not match its SHA-256") as caught:
         library = kernel.library()
     assert len(caught) == 1 and library.rk_p_command(2.0, 3.0) == -6.0
+    recorded = built.with_name(built.name + ".sha256").read_text().split()[0]      # the rebuilt file itself:
+    assert hashlib.sha256(built.read_bytes()).hexdigest() == recorded              # dlopen reuses the old map

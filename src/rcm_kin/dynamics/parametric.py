@@ -121,7 +121,10 @@ def structure_key(robot: Robot, params: DriveParameters) -> tuple:
     """What a parametric model built from ``params`` is shaped by, as a key: the robot (the object
     loaded now), the driven joints and the links with first-moment offsets. Sets with the same key
     share one model (:meth:`ParametricDynamics.values` takes any of them)."""
-    return robot, params.driven, tuple(sorted(params.gravity_offsets))
+    if not isinstance(params, DriveParameters):
+        raise RcmKinError(f"`params` must be drive parameters (load_drive_parameters), got {type(params).__name__}",
+                          parameter="params")
+    return check_robot(robot), params.driven, tuple(sorted(params.gravity_offsets))
 
 
 _SHARED: dict[tuple, ParametricDynamics] = {}     # (structure_key, coulomb, names compiled) -> model

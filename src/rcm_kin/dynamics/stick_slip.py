@@ -50,7 +50,13 @@ import numba
 import numpy as np
 
 from rcm_kin import firmware_rules
-from rcm_kin.dynamics.axis_friction import COUPLING_SWEEPS, MAX_ELEMENTS, STATE_SIZE, AxisFriction, substep_count
+from rcm_kin.dynamics.axis_friction import (
+    COUPLING_SWEEPS,
+    MAX_ELEMENTS,
+    STATE_SIZE,
+    AxisFriction,
+    substep_count,
+)
 from rcm_kin.errors import RcmKinError, as_numbers
 from rcm_kin.firmware_rules import quantise, saturate
 from rcm_kin.hardware import DRIVER_PWM_RANGE

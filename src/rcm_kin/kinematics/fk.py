@@ -53,7 +53,7 @@ def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None,
     return ForwardKinematics(q, placements, closure_error(robot, tree_configuration(robot, q), data))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.lru_cache(maxsize=64)
 def _actuated_order(robot: Robot) -> bool:
     """Whether the reduced model's configuration is the actuated vector itself (the PSM's, the
     MTM's): forward kinematics then skips :meth:`Robot.to_reduced`'s copy."""

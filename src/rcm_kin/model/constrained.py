@@ -81,17 +81,17 @@ def closure_error(robot: Robot, q_tree: np.ndarray, data: RobotData | None = Non
     data = robot.workspace(data)
     pin.forwardKinematics(robot.tree, data.tree, q_tree)
     worst, tree, tree_data = 0.0, robot.tree, data.tree
-    for c, c_data, rows in zip(robot.constraints, data.constraints, _row_floats(robot)):
+    for c, c_data, rows in zip(robot.constraints, data.constraints, _row_floats(robot), strict=True):
         c.model.calc(tree, tree_data, c_data)
         e0, e1, e2 = c_data.constraint_position_error.tolist()
         for r0, r1, r2 in rows:
             error = abs(r0 * e0 + r1 * e1 + r2 * e2)
-            if error > worst:
-                worst = error
+            if not error <= worst:          # NaN taken, and kept, as NumPy's max does
+                worst = error if worst == worst else worst
     return worst
 
 
-@functools.lru_cache(maxsize=None)
+@functools.lru_cache(maxsize=64)
 def _row_floats(robot: Robot) -> tuple[list[list[float]], ...]:
     """Each constraint's independent rows as Python floats (built once per robot)."""
     return tuple(c.rows.tolist() for c in robot.constraints)

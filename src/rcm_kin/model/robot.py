@@ -13,7 +13,6 @@ threads using one robot never share scratch data.
 
 from __future__ import annotations
 
-import functools
 import math
 import threading
 from collections.abc import Callable
@@ -67,9 +66,11 @@ class Robot:
     upper: np.ndarray
     massless_links: tuple[str, ...] = ()   # moving links whose rigid body has no <inertial> in the URDF
     _threads: threading.local = field(default_factory=threading.local, init=False, repr=False)  # per thread: RobotData
+    _bounds: tuple | None = field(default=None, init=False, repr=False)      # limit_bounds, and what it is of
 
     def __post_init__(self):
-        for limits in (self.lower, self.upper):     # read-only: limit_bounds is computed from them once
+        self.lower, self.upper = (np.array(limits, dtype=float) for limits in (self.lower, self.upper))
+        for limits in (self.lower, self.upper):     # own read-only copies: limit_bounds reads them once
             limits.setflags(write=False)
 
     def create_data(self) -> RobotData:
@@ -184,11 +185,16 @@ class Robot:
         q = self.check_q(q, parameter=parameter)
         return q if allow_outside_limits else self.check_limits(q, parameter=parameter)
 
-    @functools.cached_property
+    @property
     def limit_bounds(self) -> tuple[list[float], list[float]]:
         """The joint limits widened by :data:`LIMIT_TOLERANCE` as Python floats, as
-        :func:`check_within_limits` compares them: the one-pass check of :meth:`check_pose`."""
-        return (self.lower - LIMIT_TOLERANCE).tolist(), (self.upper + LIMIT_TOLERANCE).tolist()
+        :func:`check_within_limits` compares them: the one-pass check of :meth:`check_pose` (made
+        again when ``lower`` or ``upper`` is replaced)."""
+        made = self._bounds
+        if made is None or made[0] is not self.lower or made[1] is not self.upper:
+            made = self._bounds = (self.lower, self.upper, (self.lower - LIMIT_TOLERANCE).tolist(),
+                                   (self.upper + LIMIT_TOLERANCE).tolist())
+        return made[2], made[3]
 
 
 def check_robot(robot, parameter: str = "robot") -> Robot:

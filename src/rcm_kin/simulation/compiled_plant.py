@@ -37,6 +37,8 @@ class CFunction:
     address: int                 # of f in the loaded library
     work: np.ndarray             # (4,) int64: sizes of arg, res, iw, w (CasADi's f_work)
     library: ctypes.CDLL         # keeps the library loaded while the address is used
+    inputs: tuple[int, ...] = ()     # values of each input (dense)
+    outputs: tuple[int, ...] = ()    # values of each output (dense)
 
 
 def c_function(fn: ca.Function) -> CFunction | None:
@@ -58,7 +60,12 @@ def c_function(fn: ca.Function) -> CFunction | None:
     sizes = [ctypes.c_longlong() for _ in range(4)]
     getattr(library, f"{fn.name()}_work")(*(ctypes.byref(s) for s in sizes))
     address = ctypes.cast(getattr(library, fn.name()), ctypes.c_void_p).value
-    return CFunction(address, np.array([s.value for s in sizes], dtype=np.int64), library)
+    return CFunction(address, np.array([s.value for s in sizes], dtype=np.int64), library,
+                     tuple(fn.nnz_in(i) for i in range(fn.n_in())), tuple(fn.nnz_out(i) for i in range(fn.n_out())))
+
+
+PLANT_SHAPES = {DRIVE_TRAIN: (((3,), (9,)), ((3, 3), (3,))),     # kind -> per function: (inputs, outputs)
+                SMOOTH: (((6, 3), (6,)),)}                       # (before any parameters input)
 
 
 @dataclass(frozen=True)
@@ -79,6 +86,26 @@ class CompiledPlant:
     substeps: int = 1            # stick-slip substeps per period (stick_slip.substep_count)
     parameters: np.ndarray = field(default_factory=lambda: np.zeros(0))   # of parametric functions (their
                                  # last input, :mod:`rcm_kin.dynamics.parametric`); empty: none
+
+    def __post_init__(self):
+        """The C kernel reads what the functions' shapes say without bounds checks: refuse here a
+        plant whose functions, parameters or drive train do not fit its kind."""
+        shapes = PLANT_SHAPES.get(self.kind)
+        if shapes is None or len(self.functions) != len(shapes) or not all(
+                isinstance(f, CFunction) and f.address for f in self.functions):
+            raise RcmKinError(f"a compiled plant of kind {self.kind} needs {len(shapes or ())} C functions "
+                              "(c_function)", parameter="functions")
+        parameters = np.asarray(self.parameters, dtype=float)
+        for fn, (inputs, outputs) in zip(self.functions, shapes):
+            extra = fn.inputs[len(inputs):]
+            if fn.inputs[:len(inputs)] != inputs or fn.outputs != outputs or len(extra) > 1:
+                raise RcmKinError(f"a compiled plant's function takes {inputs} values and gives {outputs}, got "
+                                  f"{fn.inputs} and {fn.outputs}", parameter="functions")
+            if parameters.shape != ((extra[0],) if extra else (0,)):
+                raise RcmKinError(f"the plant's functions take {extra[0] if extra else 0} parameters, got "
+                                  f"{parameters.size}", parameter="parameters")
+        if (self.kind == DRIVE_TRAIN) != (self.drive_train is not None):
+            raise RcmKinError("a drive-train plant, and only one, carries its DriveTrainPlant", parameter="drive_train")
 
     def initial(self, position) -> np.ndarray:
         if self.drive_train is not None:

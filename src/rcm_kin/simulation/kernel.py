@@ -37,7 +37,7 @@ from rcm_kin.simulation import kernel_forms
 from rcm_kin.symbolic.compiled import COMPILE_FLAGS, cache_key, cached_library, load_library
 
 DRIVE_TRAIN, SMOOTH = 0, 1                         # CompiledPlant.kind
-FLAGS = (*COMPILE_FLAGS, "-ffp-contract=off")      # no fused multiply-adds: the Python side does none
+FLAGS = COMPILE_FLAGS      # with -ffp-contract=off: no fused multiply-adds, as the Python side does none
 C_SOURCE = Path(__file__).with_name("kernel.c")
 INT64 = np.dtype(np.int64)
 
@@ -144,7 +144,8 @@ def _plant(kind, addresses, work, parameters, friction, input_gain, damping, ref
     known = _PLANTS.get(id(addresses))
     if known is not None and known[1][0] == kind and all(a is b for a, b in zip(known[0], arrays)):
         return known[1]
-    if len(addresses) < (1 if kind == SMOOTH else 2) or work.ndim != 2 or work.shape[1] != 4 or friction.ndim != 2:
+    needed = 1 if kind == SMOOTH else 2
+    if not np.all(addresses[:needed] != 0) or work.ndim != 2 or work.shape[1] != 4 or friction.ndim != 2:
         raise RcmKinError("the kernel's plant needs its functions' addresses and work sizes (k, 4) and friction "
                           "(3, n)", parameter="addresses")
     made = [int(kind), _address(addresses, "addresses", INT64), _address(work, "work", INT64), work.shape[0],
@@ -185,9 +186,10 @@ def run(first, stop, x, previous, filtered, memory, ref_fw, vel_fw, acc_fw, nois
     joint units to firmware units (``loop.FIRMWARE_SCALE``), ``insertion_kp``: the insertion's
     P gain (counts/m). Returns the tick where the state stopped being finite, or ``stop``."""
     n = ref_fw.shape[0]
-    if not (-(noise.shape[0] - n - 1) <= first <= stop <= n and vel_fw.shape == acc_fw.shape == ref_fw.shape == (n, 3)
-            and noise.shape[1:] == (3,) and all(log.shape == (n, 3) for log in (log_measured, log_position,
-                                                                                 log_command, log_pwm))):
+    logs = (log_measured, log_position, log_command, log_pwm)
+    if not (n >= 1 and -(noise.shape[0] - n - 1) <= first <= stop <= n
+            and vel_fw.shape == acc_fw.shape == ref_fw.shape == (n, 3) and noise.shape[1:] == (3,)
+            and all(log.shape == (n, 3) for log in logs)):
         raise RcmKinError(f"the kernel's ticks {first} .. {stop} do not fit the reference ({n} ticks), the noise "
                           f"({noise.shape[0]} readings) or the logs", parameter="first")
     scalars = np.ascontiguousarray([scale, limit, count], dtype=float)      # (3, 3), alive through the call

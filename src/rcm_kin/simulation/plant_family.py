@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from rcm_kin.dynamics.axis_friction import substep_count
 from rcm_kin.dynamics.drive import DriveParameters
 from rcm_kin.dynamics.parametric import ParametricDynamics, parametric_dynamics, structure_key
-from rcm_kin.errors import RcmKinError
+from rcm_kin.errors import RcmKinError, as_number
 from rcm_kin.model import load_robot
 from rcm_kin.simulation.compiled_plant import CFunction, CompiledPlant, c_function
 from rcm_kin.simulation.kernel import DRIVE_TRAIN, SMOOTH
@@ -29,6 +29,8 @@ from rcm_kin.simulation.plant import (
     period_map,
     rigid_body_drive,
 )
+
+MAX_PERIOD = 1.0     # s: a controller period longer than this is a mistake (the firmware's is 2.5 ms)
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,6 +67,8 @@ def plant_family(params: DriveParameters, period: float, substeps: int = 4) -> P
     disk; none without a C compiler: then ``plant`` is the readable plant); ``substeps`` RK4 steps
     per ``period`` s in the smooth model's period map."""
     psm = load_robot("psm")
+    structure_key(psm, params)                          # drive parameters, or a one-line error
+    period = as_number(period, "period", "s", 0.0, MAX_PERIOD, low_open=True)
     if params.drive_train:
         model = parametric_dynamics(psm, rigid_body_drive(params), coulomb=False)
         mass_matrix, bias = c_function(model.mass_matrix), c_function(model.bias)
@@ -84,7 +88,8 @@ def family_of(params: DriveParameters, period: float, substeps: int = 4) -> Plan
     """:func:`plant_family` of ``params``' structure (the parametric model's
     :func:`~rcm_kin.dynamics.parametric.structure_key` and which joints have drive trains), built
     once per process: the plant of a drawn set is ``family_of(drawn, period).plant(drawn)``."""
-    key = (structure_key(load_robot("psm"), params), tuple(sorted(params.drive_train)), float(period), int(substeps))
+    key = (structure_key(load_robot("psm"), params), tuple(sorted(params.drive_train)),
+           as_number(period, "period", "s", 0.0, MAX_PERIOD, low_open=True), int(substeps))
     if key not in _FAMILIES:
         _FAMILIES[key] = plant_family(params, period, substeps)
     return _FAMILIES[key]

@@ -43,9 +43,8 @@ import numpy as np
 from rcm_kin.atomic import write_text
 from rcm_kin.errors import CompilerFallbackWarning, RcmKinError, warn
 
-COMPILE_FLAGS = ("-O2", "-fPIC", "-shared")
-CACHE_LIBRARIES = 256     # compiled libraries kept; beyond it the least recently used go (robustness
-                          # samples compile one model per drawn parameter set)
+COMPILE_FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off")   # no fused multiply-add: as interpreted
+CACHE_LIBRARIES = 256     # compiled libraries kept; beyond it the least recently used go
 
 
 def cache_folder() -> Path:
@@ -100,14 +99,15 @@ def compiled(fn: ca.Function) -> ca.Function:
 def compiled_and_library(fn: ca.Function) -> tuple[ca.Function, ctypes.CDLL | None]:
     """:func:`compiled` and the library behind it, loaded with ``ctypes`` (None where ``fn`` runs
     interpreted): its C entry points for callers that loop in C (:mod:`rcm_kin.symbolic.points`)."""
+    if any(f.is_a("External") for f in fn.find_functions()):    # it calls compiled code already (a bound
+        return fn, None                                          # parametric model)
     found = loaded_library(fn)
     return (fn, None) if found is None else (_load(fn.name(), found[0]), found[1])
 
 
 def loaded_library(fn: ca.Function) -> tuple[Path, ctypes.CDLL] | None:
-    """:func:`compiled_library` of ``fn`` and the library loaded (:func:`load_library`). None as
-    :func:`compiled_library`; raises :class:`RcmKinError` when the compiler fails or the library
-    built anew does not load either."""
+    """:func:`compiled_library` of ``fn`` and the library loaded (:func:`load_library`); None as it; an
+    :class:`RcmKinError` when the compiler fails or the library built anew does not load either."""
     library = compiled_library(fn)
     return None if library is None else load_library(library, lambda: compiled_library(fn), fn.name())
 
@@ -269,12 +269,11 @@ def _merged(fn: ca.Function) -> ca.Function:
 
 def map_points(fn: ca.Function, *args: np.ndarray, chunk: int = 16384) -> tuple[np.ndarray, ...]:
     """``fn`` at N points, ``fn.map`` over chunks of ``chunk`` points through bound buffers (no
-    CasADi matrices in between, memory bounded by the chunk and the outputs; each map built once
-    per process and size).
+    CasADi matrices in between, memory bounded by the chunk and the outputs; the map of an SX or
+    compiled function built once per process and size).
 
-    ``args``: arrays (N, nnz_in_i), one row per point (dense inputs). Returns one array per output:
-    (N,) for a scalar output, (N, rows) for a column vector, (N, rows, cols) otherwise
-    (structural zeros filled)."""
+    ``args``: arrays (N, nnz_in_i), one row per point (dense inputs). Returns one array per output: (N,)
+    for a scalar output, (N, rows) for a column vector, (N, rows, cols) otherwise (zeros filled)."""
     n = len(args[0])
     rows = [np.ascontiguousarray(np.asarray(a, dtype=float).reshape(n, -1)) for a in args]
     for i, a in enumerate(rows):
@@ -285,7 +284,8 @@ def map_points(fn: ca.Function, *args: np.ndarray, chunk: int = 16384) -> tuple[
     for start in range(0, n, chunk):
         stop = min(start + chunk, n)
         if stop - start not in mapped:
-            mapped[stop - start] = _mapped(fn, stop - start).buffer()    # the map built once per process
+            mapped[stop - start] = (fn.map(stop - start) if fn.is_a("MXFunction")    # a bound model's: not kept
+                                    else _mapped(fn, stop - start)).buffer()
         buffer, trigger = mapped[stop - start]
         views = [a[start:stop] for a in rows] + [nz[start:stop] for nz in nonzeros]
         for i, v in enumerate(views[:len(rows)]):
