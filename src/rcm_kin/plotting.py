@@ -28,15 +28,25 @@ FIXED = {"heatmaps": {"left": 0.06, "right": 0.97, "bottom": 0.11, "top": 0.87, 
 
 
 @functools.cache
-def pyplot():
-    """``matplotlib.pyplot`` on the Agg backend (files only, no display), imported when the first
-    figure is drawn, not when rcm_kin is: a command that draws nothing never pays for it."""
-    import matplotlib
+def _agg() -> tuple[type, type]:
+    """matplotlib's ``Figure`` and the Agg canvas (files only, no display), imported when the first
+    figure is drawn, not when rcm_kin is: a command that draws nothing never pays for it. Not
+    pyplot: its figure managers and backend switching are not needed to write files."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    return Figure, FigureCanvasAgg
 
-    return plt
+
+def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], layout: str | None = None,
+             **kwargs):
+    """A new figure of ``figsize`` (inches) on the Agg canvas and its grid of axes, as
+    ``pyplot.subplots`` makes them (``kwargs``: ``squeeze``, ``sharex``, ``gridspec_kw``, ...);
+    ``layout`` None keeps the grid's margins as given (no layout solved when it is drawn)."""
+    figure, canvas = _agg()
+    fig = figure(figsize=figsize, layout=layout)
+    canvas(fig)
+    return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
 def figure_format(path: str | Path) -> str:
@@ -48,7 +58,7 @@ def figure_format(path: str | Path) -> str:
 
 def save_figure(fig, path: str | Path) -> Path:
     """Write the figure as a PNG (110 dpi; zlib level 3: a sixth larger than the default 6, the same
-    pixels, written in a fraction of the time) and free it."""
+    pixels, written in a fraction of the time)."""
     path = Path(path)
     try:
         with atomic_path(path) as temporary:    # the format named: matplotlib would add a suffix to a bare name
@@ -57,8 +67,6 @@ def save_figure(fig, path: str | Path) -> Path:
         raise
     except (OSError, ValueError) as exc:
         raise RcmKinError(f"cannot write the figure {path}: {exc}") from None
-    finally:
-        pyplot().close(fig)
     return path
 
 
@@ -76,8 +84,7 @@ def prediction_figure(time, measured, predicted, path: str | Path, title: str = 
     axes mark where the measured angle rests and where the model is stuck. ``band``: optional
     (lower, upper) arrays (deg, same samples) shaded as ``band_label``; ``median``: an optional
     curve (deg) drawn dotted, the band's median."""
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(8, 3.6), constrained_layout=True)
+    fig, ax = subplots(figsize=(8, 3.6), layout="constrained")
     bands = ((_still_spans(time, measured), "0.8", "measured at rest (lower band)", 0.0, 0.08),
              (_still_spans(time, predicted), "#9fd49f", "model stuck (upper band)", 0.92, 1.0))
     for spans, colour, label, low, high in bands:
@@ -105,9 +112,8 @@ def effort_heatmaps(gmap, drive, path: str | Path, insertion_index: int = 0, ima
     ``image_samples`` per axis, both ends kept), the contour lines (9 levels, matplotlib's choice
     over the whole grid's range) traced on at most ``contour_samples`` evenly spread poses per axis
     (:func:`spread_samples`); the colour scale is the whole grid's."""
-    plt = pyplot()
     pwm = gmap.effort.pwm
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), gridspec_kw=FIXED["heatmaps"])   # fixed: no layout solve
+    fig, axes = subplots(1, 2, figsize=(11, 4.6), gridspec_kw=FIXED["heatmaps"])   # fixed: no layout solve
     extent = [*_span(gmap.roll_deg), *_span(gmap.pitch_deg)]
     rows, cols = (spread_samples(n, contour_samples) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
     pixels = tuple(slice(None, None, image_stride(n, image_samples)) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
@@ -176,9 +182,8 @@ def _same_as(curve: np.ndarray, earlier: dict) -> str:
 def thesis_trend_curves(gmap, path: str | Path, insertion_index: int = 0, others=(-15.0, 0.0, 15.0)) -> Path:
     """Fig 4.6 (|roll voltage| vs roll) and Fig 4.7 (pitch voltage vs pitch), computed. Every
     curve has its own line style; one lying on another says so in the legend."""
-    plt = pyplot()
     e = gmap.effort
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw=FIXED["trends"])
+    fig, (a, b) = subplots(1, 2, figsize=(11, 4.2), gridspec_kw=FIXED["trends"])
     drawn_a, drawn_b = {}, {}
     for k, other in enumerate(others):
         i = int(np.argmin(np.abs(gmap.pitch_deg - other)))
@@ -205,10 +210,11 @@ def insertion_curves(gmap, path: str | Path) -> Path:
     """Holding torque of roll and pitch and holding force of the insertion versus the insertion,
     one curve per (roll, pitch) pose of the map: colour and marker by pitch, line style by roll;
     the markers of the poses are staggered, so curves that coincide still show each pose."""
-    plt = pyplot()
+    from matplotlib import colormaps
+
     e = gmap.effort
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.9), gridspec_kw=FIXED["insertion"])
-    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, len(gmap.pitch_deg)))
+    fig, axes = subplots(1, 3, figsize=(13, 3.9), gridspec_kw=FIXED["insertion"])
+    colours = colormaps["viridis"](np.linspace(0.0, 0.85, len(gmap.pitch_deg)))
     quantities = (("roll holding torque", "N m"), ("pitch holding torque", "N m"), ("insertion holding force", "N"))
     for k, (ax, (name, unit)) in enumerate(zip(axes, quantities)):
         for i, roll in enumerate(gmap.roll_deg):
@@ -232,11 +238,9 @@ def stability_maps(surveys: dict, path: str | Path) -> Path:
     """Per survey (title -> StabilitySurvey): the 400 Hz firmware loop's slowest decay rate
     ``-ln(spectral radius) / T`` (1/s; negative = unstable) over roll x pitch, all panels on one
     symmetric colour scale (zero, the stability limit, in the middle), each with its range."""
-    plt = pyplot()
-
     decays = {title: -np.log(s.spectral_radius) / FIRMWARE_PERIOD for title, s in surveys.items()}
     limit = max(float(np.abs(d).max()) for d in decays.values()) or 1.0
-    fig, axes = plt.subplots(1, len(surveys), figsize=(5 * len(surveys), 4.3), layout="constrained", squeeze=False)
+    fig, axes = subplots(1, len(surveys), figsize=(5 * len(surveys), 4.3), layout="constrained", squeeze=False)
     for ax, (title, s) in zip(axes[0], surveys.items()):
         decay = decays[title]
         extent = [s.roll_deg[0], s.roll_deg[-1], s.pitch_deg[0], s.pitch_deg[-1]]
@@ -255,8 +259,7 @@ def stability_maps(surveys: dict, path: str | Path) -> Path:
 def tracking_figure(result, path: str | Path, title: str = "") -> Path:
     """Thesis Figs 5.2-5.5 and 5.8-5.9: reference and measured angle per axis (top) and the
     tracking error (bottom), with the PWM sent on a second axis."""
-    plt = pyplot()
-    fig, axes = plt.subplots(2, 2, figsize=(11, 6.4), sharex=True, layout="constrained")
+    fig, axes = subplots(2, 2, figsize=(11, 6.4), sharex=True, layout="constrained")
     for i, axis in enumerate(("roll", "pitch")):
         top, bottom = axes[0, i], axes[1, i]
         top.plot(result.time, result.reference[:, i], "k--", lw=1.2, label="reference")
@@ -276,8 +279,7 @@ def tracking_figure(result, path: str | Path, title: str = "") -> Path:
 
 def error_comparison_figure(results: list, path: str | Path, title: str = "") -> Path:
     """Thesis Figs 5.6/5.7 and 5.10/5.11: the tracking error of several controllers per axis."""
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.6), constrained_layout=True)
+    fig, axes = subplots(1, 2, figsize=(11, 3.6), layout="constrained")
     for i, (ax, axis) in enumerate(zip(axes, ("roll", "pitch"))):
         for r in results:
             ax.plot(r.time, r.error[:, i], lw=1.0, label=r.controller)
@@ -320,11 +322,10 @@ def greybox_figure(fit, path: str | Path) -> Path:
     parameters (and each log's own Coulomb friction), one panel per log. The y-axis is the
     measured response's; a simulated curve beyond it is clipped and the panel says so. The
     starting set is a broad pale band under the fitted set's dashes, so both show where they agree."""
-    plt = pyplot()
     n = len(fit.logs)
     cols = min(n, 3)
     rows = -(-n // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(4.4 * cols, 3.3 * rows + 0.5), layout="constrained", squeeze=False)
+    fig, axes = subplots(rows, cols, figsize=(4.4 * cols, 3.3 * rows + 0.5), layout="constrained", squeeze=False)
     for ax, name, r, before, after, own in zip(axes.flat, fit.logs, fit.responses, fit.fit_before, fit.fit_after,
                                                fit.fit_per_log_friction):
         for key in ("starting", "fitted", "own_coulomb", "measured"):
@@ -346,8 +347,7 @@ def greybox_figure(fit, path: str | Path) -> Path:
 def barrier_figure(runs: dict, path: str | Path) -> Path:
     """Barrier value along each safety scenario (``{scenario: {filter: SafetyRun}}``): B <= 0 is
     safe; the unfiltered run shows where the nominal controller would have gone."""
-    plt = pyplot()
-    fig, axes = plt.subplots(1, len(runs), figsize=(4.2 * len(runs), 3.4), constrained_layout=True, squeeze=False)
+    fig, axes = subplots(1, len(runs), figsize=(4.2 * len(runs), 3.4), layout="constrained", squeeze=False)
     for ax, (scenario, by_filter) in zip(axes[0], runs.items()):
         for name, run in by_filter.items():
             ax.plot(run.time, run.barrier, lw=1.0, label=name, ls=":" if name == "none" else "-")
@@ -365,14 +365,13 @@ def torque_heatmaps(tmap, path: str | Path, drive=None, most: int = 6, image_sam
     the robot's order), ``joint_a`` up, ``joint_b`` across (degrees for revolute joints, m for
     prismatic). With a drive (``drive``, default the map's ``params``) a driven joint's colour bar has a second
     scale in PWM counts (hardware sign). Large grids are drawn from samples as :func:`effort_heatmaps`."""
-    plt = pyplot()
     drive = tmap.params if drive is None else drive
     scale = float(np.abs(tmap.tau).max()) if tmap.tau.size else 0.0
     loaded = [k for k in range(len(tmap.actuated)) if np.abs(tmap.tau[..., k]).max() > 1e-9 + 1e-6 * scale]
     shown = (loaded or [0])[:most]
     cols = min(3, len(shown))
     rows_n = -(-len(shown) // cols)
-    fig, axes = plt.subplots(rows_n, cols, figsize=(5.2 * cols, 4.3 * rows_n), layout="constrained", squeeze=False)
+    fig, axes = subplots(rows_n, cols, figsize=(5.2 * cols, 4.3 * rows_n), layout="constrained", squeeze=False)
     axis = [np.degrees(v) if u == "rad" else v for v, u in zip(tmap.values, tmap.units)]
     label = [f"{j} ({'deg' if u == 'rad' else 'm'})" for j, u in zip(tmap.joints, tmap.units)]
     extent = [*_span(axis[1]), *_span(axis[0])]

@@ -155,12 +155,12 @@ PRELOAD = ("rcm_kin.visualization.views", "scipy.interpolate", "rcm_kin.simulati
 
 
 def preload() -> None:
-    """Import :data:`PRELOAD` and matplotlib's pyplot (on Agg) in this process, before the pool forks."""
+    """Import :data:`PRELOAD` and matplotlib's figure and Agg canvas in this process, before the pool forks."""
     import importlib
 
-    from rcm_kin.plotting import pyplot
+    from rcm_kin.plotting import subplots
 
-    pyplot()
+    subplots(figsize=(1.0, 1.0))
     for name in PRELOAD:
         importlib.import_module(name)
 
