@@ -1,6 +1,9 @@
 """Matplotlib figures (files only, no display): heat maps of the holding effort and the curves of
 thesis Figs 4.6/4.7 (roll effort versus roll, pitch effort versus pitch, each at several values
-of the other joint)."""
+of the other joint), tracking, stability and barrier figures of the simulations.
+
+Figures are drawn on matplotlib's ``Figure`` and Agg canvas (:func:`subplots`), never pyplot's
+managers; those of ``torque-map`` and the report on fixed margins (no layout solved when drawn)."""
 
 from __future__ import annotations
 
@@ -39,13 +42,19 @@ def _agg() -> tuple[type, type]:
 
 
 def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], layout: str | None = None,
-             **kwargs):
+             margins: tuple[float, float, float, float] | None = None, **kwargs):
     """A new figure of ``figsize`` (inches) on the Agg canvas and its grid of axes, as
-    ``pyplot.subplots`` makes them (``kwargs``: ``squeeze``, ``sharex``, ``gridspec_kw``, ...);
-    ``layout`` None keeps the grid's margins as given (no layout solved when it is drawn)."""
+    ``pyplot.subplots`` makes them (``kwargs``: ``squeeze``, ``sharex``, ``gridspec_kw``, ...).
+    ``margins``: the grid's (left, right, bottom, top) distances from the figure's edges in
+    inches, fixed: no layout is solved when the figure is drawn (a constrained layout measures
+    every label, about half the drawing time of a figure)."""
     figure, canvas = _agg()
     fig = figure(figsize=figsize, layout=layout)
     canvas(fig)
+    if margins is not None:
+        (width, height), (left, right, bottom, top) = figsize, margins
+        kwargs["gridspec_kw"] = {"left": left / width, "right": 1 - right / width, "bottom": bottom / height,
+                                 "top": 1 - top / height, **kwargs.get("gridspec_kw", {})}
     return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
@@ -240,7 +249,9 @@ def stability_maps(surveys: dict, path: str | Path) -> Path:
     symmetric colour scale (zero, the stability limit, in the middle), each with its range."""
     decays = {title: -np.log(s.spectral_radius) / FIRMWARE_PERIOD for title, s in surveys.items()}
     limit = max(float(np.abs(d).max()) for d in decays.values()) or 1.0
-    fig, axes = subplots(1, len(surveys), figsize=(5 * len(surveys), 4.3), layout="constrained", squeeze=False)
+    size = (5 * len(surveys), 4.3)       # fixed margins, the colour bar 0.75 in from the right edge
+    fig, axes = subplots(1, len(surveys), figsize=size, margins=(0.65, 1.5, 0.49, 0.27), squeeze=False,
+                         gridspec_kw={"wspace": 0.21})
     for ax, (title, s) in zip(axes[0], surveys.items()):
         decay = decays[title]
         extent = [s.roll_deg[0], s.roll_deg[-1], s.pitch_deg[0], s.pitch_deg[-1]]
@@ -252,14 +263,16 @@ def stability_maps(surveys: dict, path: str | Path) -> Path:
         ax.text(0.03, 0.04, f"decay {decay.min():+.3g} to {decay.max():+.3g} 1/s\n{verdict}",
                 transform=ax.transAxes, fontsize=8, bbox={"facecolor": "white", "alpha": 0.85, "lw": 0})
         ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=title)
-    fig.colorbar(im, ax=axes[0].tolist(), label="slowest decay rate, 1/s (< 0 unstable; one scale for all)")
+    bar = fig.add_axes((1 - 0.75 / size[0], 0.49 / size[1], 0.18 / size[0], 1 - 0.76 / size[1]))
+    fig.colorbar(im, cax=bar, label="slowest decay rate, 1/s (< 0 unstable; one scale for all)")
     return save_figure(fig, path)
 
 
 def tracking_figure(result, path: str | Path, title: str = "") -> Path:
     """Thesis Figs 5.2-5.5 and 5.8-5.9: reference and measured angle per axis (top) and the
     tracking error (bottom), with the PWM sent on a second axis."""
-    fig, axes = subplots(2, 2, figsize=(11, 6.4), sharex=True, layout="constrained")
+    fig, axes = subplots(2, 2, figsize=(11, 6.4), sharex=True, margins=(0.83, 0.72, 0.48, 0.55),
+                         gridspec_kw={"wspace": 0.36, "hspace": 0.05})
     for i, axis in enumerate(("roll", "pitch")):
         top, bottom = axes[0, i], axes[1, i]
         top.plot(result.time, result.reference[:, i], "k--", lw=1.2, label="reference")
@@ -279,7 +292,7 @@ def tracking_figure(result, path: str | Path, title: str = "") -> Path:
 
 def error_comparison_figure(results: list, path: str | Path, title: str = "") -> Path:
     """Thesis Figs 5.6/5.7 and 5.10/5.11: the tracking error of several controllers per axis."""
-    fig, axes = subplots(1, 2, figsize=(11, 3.6), layout="constrained")
+    fig, axes = subplots(1, 2, figsize=(11, 3.6), margins=(0.72, 0.1, 0.49, 0.27), gridspec_kw={"wspace": 0.19})
     for i, (ax, axis) in enumerate(zip(axes, ("roll", "pitch"))):
         for r in results:
             ax.plot(r.time, r.error[:, i], lw=1.0, label=r.controller)
@@ -289,65 +302,11 @@ def error_comparison_figure(results: list, path: str | Path, title: str = "") ->
     return save_figure(fig, path)
 
 
-GREYBOX_STYLES = {"measured": {"color": "k", "lw": 1.5},
-                  "starting": {"color": "tab:blue", "lw": 4.5, "alpha": 0.35},
-                  "fitted": {"color": "tab:orange", "lw": 1.6, "ls": "--"},
-                  "own_coulomb": {"color": "tab:green", "lw": 1.6, "ls": ":"}}
-GREYBOX_LABELS = {"measured": "measured", "starting": "starting set", "fitted": "fitted set (median Coulomb)",
-                  "own_coulomb": "fitted set, each log's own Coulomb"}
-
-
-def _measured_limits(measured: np.ndarray) -> tuple[float, float]:
-    """y-limits from the measured response (and zero), with room above and below."""
-    low, high = min(float(np.min(measured)), 0.0), max(float(np.max(measured)), 0.0)
-    span = (high - low) or 1.0
-    return low - 0.15 * span, high + 0.25 * span
-
-
-def _note_clipped(ax, response: dict, limits: tuple[float, float]) -> None:
-    """Say in the panel which simulated curves leave the axes, and how far they go."""
-    notes = []
-    for key in ("starting", "fitted", "own_coulomb"):
-        y = np.asarray(response[key])
-        if y.max() > limits[1] or y.min() < limits[0]:
-            far = y.max() if y.max() > limits[1] else y.min()
-            notes.append(f"{GREYBOX_LABELS[key].split(' (')[0]} off scale (to {far:+.3g})")
-    if notes:
-        ax.text(0.98, 0.03, "\n".join(notes), transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
-                bbox={"facecolor": "white", "alpha": 0.85, "lw": 0})
-
-
-def greybox_figure(fit, path: str | Path) -> Path:
-    """Measured step responses beside the physics simulated with the starting and the fitted
-    parameters (and each log's own Coulomb friction), one panel per log. The y-axis is the
-    measured response's; a simulated curve beyond it is clipped and the panel says so. The
-    starting set is a broad pale band under the fitted set's dashes, so both show where they agree."""
-    n = len(fit.logs)
-    cols = min(n, 3)
-    rows = -(-n // cols)
-    fig, axes = subplots(rows, cols, figsize=(4.4 * cols, 3.3 * rows + 0.5), layout="constrained", squeeze=False)
-    for ax, name, r, before, after, own in zip(axes.flat, fit.logs, fit.responses, fit.fit_before, fit.fit_after,
-                                               fit.fit_per_log_friction):
-        for key in ("starting", "fitted", "own_coulomb", "measured"):
-            ax.plot(r["time"], r[key], label=GREYBOX_LABELS[key], **GREYBOX_STYLES[key])
-        limits = _measured_limits(r["measured"])
-        ax.set_ylim(*limits)
-        _note_clipped(ax, r, limits)
-        ax.set(title=f"{name.replace('.csv', '')}\nfit: starting {before:.0f} %, fitted {after:.0f} %, "
-                     f"own Coulomb {own:.0f} %", xlabel="time (s)", ylabel=f"{fit.joint} change (deg)")
-        ax.title.set_fontsize(8)
-        ax.grid(alpha=0.3)
-    for ax in axes.flat[n:]:
-        ax.axis("off")
-    handles, labels = axes.flat[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside upper center", ncol=4, fontsize=8)
-    return save_figure(fig, path)
-
-
 def barrier_figure(runs: dict, path: str | Path) -> Path:
     """Barrier value along each safety scenario (``{scenario: {filter: SafetyRun}}``): B <= 0 is
     safe; the unfiltered run shows where the nominal controller would have gone."""
-    fig, axes = subplots(1, len(runs), figsize=(4.2 * len(runs), 3.4), layout="constrained", squeeze=False)
+    fig, axes = subplots(1, len(runs), figsize=(4.2 * len(runs), 3.4), margins=(0.58, 0.1, 0.49, 0.27),
+                         squeeze=False, gridspec_kw={"wspace": 0.3})
     for ax, (scenario, by_filter) in zip(axes[0], runs.items()):
         for name, run in by_filter.items():
             ax.plot(run.time, run.barrier, lw=1.0, label=name, ls=":" if name == "none" else "-")
@@ -371,7 +330,8 @@ def torque_heatmaps(tmap, path: str | Path, drive=None, most: int = 6, image_sam
     shown = (loaded or [0])[:most]
     cols = min(3, len(shown))
     rows_n = -(-len(shown) // cols)
-    fig, axes = subplots(rows_n, cols, figsize=(5.2 * cols, 4.3 * rows_n), layout="constrained", squeeze=False)
+    fig, axes = subplots(rows_n, cols, figsize=(5.2 * cols, 4.3 * rows_n), margins=(0.64, 0.97, 0.49, 0.62),
+                         squeeze=False, gridspec_kw={"wspace": 0.45, "hspace": 0.22})
     axis = [np.degrees(v) if u == "rad" else v for v, u in zip(tmap.values, tmap.units)]
     label = [f"{j} ({'deg' if u == 'rad' else 'm'})" for j, u in zip(tmap.joints, tmap.units)]
     extent = [*_span(axis[1]), *_span(axis[0])]
@@ -387,8 +347,10 @@ def torque_heatmaps(tmap, path: str | Path, drive=None, most: int = 6, image_sam
                        levels=contour_levels(data, 9))
         ax.set(xlabel=label[1], ylabel=label[0], title=f"{joint} holding torque")
         unit = tmap.tau_units[k]
-        bar = fig.colorbar(im, ax=ax, label=f"{'force' if unit == 'N' else 'torque'} ({unit})")
-        if drive is not None and joint in tmap.driven:
+        driven = drive is not None and joint in tmap.driven      # room for the PWM scale left of the bar
+        bar = fig.colorbar(im, ax=ax, label=f"{'force' if unit == 'N' else 'torque'} ({unit})", fraction=0.05,
+                           pad=0.2 if driven else 0.05)
+        if driven:
             gain = drive[joint].pwm_per_torque
             bar.ax.secondary_yaxis("left", functions=(lambda t, c=gain: t * c, lambda p, c=gain: p / c)).set_ylabel(
                 "PWM (counts, hardware sign)")

@@ -24,7 +24,7 @@ def robustness_figure(result: Robustness, path: str | Path) -> Path:
     radius over the samples, a curve per controller (the PID has no radius)."""
     from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
-    fig, axes = subplots(1, 3, figsize=(13, 3.8), layout="constrained")
+    fig, axes = subplots(1, 3, figsize=(13, 3.8), margins=(0.6, 0.1, 0.49, 0.56), gridspec_kw={"wspace": 0.17})
     for c, name in enumerate(result.controllers):
         style = {"where": "post", "label": name, "color": f"C{c}"}
         for a, title in enumerate(("roll", "pitch")):

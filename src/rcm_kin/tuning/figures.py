@@ -25,8 +25,8 @@ def study_figure(study: dict, path: str | Path) -> Path:
     from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
     experiments = study["experiments"]
-    fig, axes = subplots(len(experiments), 2, figsize=(11, 3.4 * len(experiments)), layout="constrained",
-                             squeeze=False)
+    fig, axes = subplots(len(experiments), 2, figsize=(11, 3.4 * len(experiments)), margins=(0.62, 0.1, 0.49, 0.68),
+                         squeeze=False, gridspec_kw={"wspace": 0.14, "hspace": 0.29})
     for c, name in enumerate(CONTROLLERS):
         for style, draws in (("-", "tuning"), ("--", "held_out")):
             errors = np.array(study["judged"][draws][name]["per_draw"]["max_error_deg"], dtype=float)
@@ -51,7 +51,7 @@ def study_figure(study: dict, path: str | Path) -> Path:
 
 def gains_figure(s: GainSchedule, thesis_tables: dict[str, np.ndarray], path: str | Path) -> Path:
     """A schedule's Kp of roll and pitch over the grid (deg) beside the thesis's tables."""
-    fig, axes = subplots(1, 2, figsize=(10, 3.6), layout="constrained")
+    fig, axes = subplots(1, 2, figsize=(10, 3.6), margins=(0.65, 0.1, 0.49, 0.27), gridspec_kw={"wspace": 0.16})
     for ax, (axis, table) in zip(axes, (("roll", s.k_roll), ("pitch", s.k_pitch))):
         for j, pitch in enumerate(s.pitch_deg):
             ax.plot(s.roll_deg, table[j, :, 0], "o-", color=f"C{j}", label=f"tuned, pitch {pitch:g} deg")
