@@ -69,6 +69,7 @@ def save_figure(fig, path: str | Path) -> Path:
     """Write the figure as a PNG (110 dpi; zlib level 3: a sixth larger than the default 6, the same
     pixels, written in a fraction of the time)."""
     path = Path(path)
+    pin_titles(fig)
     try:
         with atomic_path(path) as temporary:    # the format named: matplotlib would add a suffix to a bare name
             fig.savefig(temporary, dpi=110, format=figure_format(path), pil_kwargs={"compress_level": 3})
@@ -77,6 +78,27 @@ def save_figure(fig, path: str | Path) -> Path:
     except (OSError, ValueError) as exc:
         raise RcmKinError(f"cannot write the figure {path}: {exc}") from None
     return path
+
+
+def pin_titles(fig) -> None:
+    """Keep each axes' title at its default place (1.0, the pad above the axes) where matplotlib
+    would leave it there anyway, so that drawing skips its title placement (which lays out the
+    y-axis tick labels of the axes and its siblings once more: a fifth of a figure's drawing time):
+    a plain 2-D axes without child axes whose siblings' x ticks and labels are all at the bottom
+    and none of whose y-axes shows an offset text (``1e-5``, ``+2.1``) for the title to clear."""
+    for ax in fig.axes:
+        siblings = {ax, *ax.get_shared_x_axes().get_siblings(ax), *ax.get_shared_y_axes().get_siblings(ax)}
+        if (ax.name == "rectilinear" and ax.get_title() and not ax.child_axes
+                and all(a.xaxis.get_ticks_position() == a.xaxis.get_label_position() == "bottom"
+                        and not _offset_text(a.yaxis) for a in siblings)):
+            ax._autotitlepos = False       # matplotlib's own switch (set when a title is given a y)
+
+
+def _offset_text(axis) -> str:
+    """The offset text (``1e-5``, ``+2.1``) ``axis`` shows beside its tick labels when drawn, '' for none."""
+    formatter = axis.get_major_formatter()
+    formatter.set_locs(axis.get_majorticklocs())
+    return formatter.get_offset()
 
 
 def _still_spans(time: np.ndarray, angle: np.ndarray, least: float = 0.05) -> list[tuple[float, float]]:
