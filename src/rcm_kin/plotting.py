@@ -15,6 +15,7 @@ import numpy as np
 from rcm_kin.atomic import atomic_path
 from rcm_kin.dynamics.drive import DRIVEN
 from rcm_kin.errors import RcmKinError
+from rcm_kin.figure_layout import pin_titles, shortfall, widen
 from rcm_kin.hardware import FIRMWARE_PERIOD
 from rcm_kin.thesis import FIGURES
 
@@ -67,8 +68,11 @@ def figure_format(path: str | Path) -> str:
 
 def save_figure(fig, path: str | Path) -> Path:
     """Write the figure as a PNG (110 dpi; zlib level 3: a sixth larger than the default 6, the same
-    pixels, written in a fraction of the time)."""
+    pixels, written in a fraction of the time). A figure on fixed margins is widened where its y
+    tick labels would not fit them, and its titles pinned (:mod:`rcm_kin.figure_layout`)."""
     path = Path(path)
+    if fig.get_layout_engine() is None:
+        widen(fig, *shortfall(fig))
     pin_titles(fig)
     try:
         with atomic_path(path) as temporary:    # the format named: matplotlib would add a suffix to a bare name
@@ -78,59 +82,6 @@ def save_figure(fig, path: str | Path) -> Path:
     except (OSError, ValueError) as exc:
         raise RcmKinError(f"cannot write the figure {path}: {exc}") from None
     return path
-
-
-def pin_titles(fig) -> None:
-    """Keep each axes' title at its default place (1.0, the pad above the axes) where matplotlib
-    would leave it there anyway, so that drawing skips its title placement (which lays out the
-    y-axis tick labels of the axes and its siblings once more: a fifth of a figure's drawing time):
-    a plain 2-D axes without child axes whose siblings' x ticks and labels are all at the bottom
-    and none of whose y-axes shows an offset text (``1e-5``, ``+2.1``) for the title to clear."""
-    for ax in fig.axes:
-        siblings = {ax, *ax.get_shared_x_axes().get_siblings(ax), *ax.get_shared_y_axes().get_siblings(ax)}
-        if (ax.name == "rectilinear" and ax.get_title() and not ax.child_axes
-                and all(a.xaxis.get_ticks_position() == a.xaxis.get_label_position() == "bottom"
-                        and not _offset_text(a.yaxis) for a in siblings)):
-            ax._autotitlepos = False       # matplotlib's own switch (set when a title is given a y)
-
-
-def _offset_text(axis) -> str:
-    """The offset text (``1e-5``, ``+2.1``) ``axis`` shows beside its tick labels when drawn, '' for none."""
-    formatter = axis.get_major_formatter()
-    formatter.set_locs(axis.get_majorticklocs())
-    return formatter.get_offset()
-
-
-def _still_spans(time: np.ndarray, angle: np.ndarray, least: float = 0.05) -> list[tuple[float, float]]:
-    """Intervals (s) over which ``angle`` does not change for at least ``least`` s."""
-    moving = np.r_[True, np.diff(angle) != 0.0, True]
-    edges = np.flatnonzero(moving)
-    return [(time[a], time[min(b, time.size - 1)]) for a, b in zip(edges[:-1], edges[1:])
-            if time[min(b, time.size - 1)] - time[a] >= least]
-
-
-def prediction_figure(time, measured, predicted, path: str | Path, title: str = "", band=None,
-                      band_label: str = "prediction band", median=None) -> Path:
-    """Measured and predicted angle (deg) over time (s); bands along the bottom and the top of the
-    axes mark where the measured angle rests and where the model is stuck. ``band``: optional
-    (lower, upper) arrays (deg, same samples) shaded as ``band_label``; ``median``: an optional
-    curve (deg) drawn dotted, the band's median."""
-    fig, ax = subplots(figsize=(8, 3.6), layout="constrained")
-    bands = ((_still_spans(time, measured), "0.8", "measured at rest (lower band)", 0.0, 0.08),
-             (_still_spans(time, predicted), "#9fd49f", "model stuck (upper band)", 0.92, 1.0))
-    for spans, colour, label, low, high in bands:
-        for k, (a, b) in enumerate(spans):
-            ax.axvspan(a, b, ymin=low, ymax=high, color=colour, lw=0, label=label if k == 0 else None)
-    if band is not None:
-        ax.fill_between(time, band[0], band[1], color="tab:blue", alpha=0.25, lw=0, label=band_label)
-    ax.plot(time, measured, "k", lw=1.4, label="measured")
-    ax.plot(time, predicted, color="tab:green", lw=1.2, ls="--", label="predicted (recorded PWM, no refit)")
-    if median is not None:
-        ax.plot(time, median, color="tab:blue", lw=1.0, ls=":", label="band median")
-    ax.set(xlabel="time (s)", ylabel="angle (deg)", title=title)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
-    ax.grid(alpha=0.3)
-    return save_figure(fig, path)
 
 
 def effort_heatmaps(gmap, drive, path: str | Path, insertion_index: int = 0, image_samples: int = IMAGE_SAMPLES,
@@ -294,7 +245,7 @@ def tracking_figure(result, path: str | Path, title: str = "") -> Path:
     """Thesis Figs 5.2-5.5 and 5.8-5.9: reference and measured angle per axis (top) and the
     tracking error (bottom), with the PWM sent on a second axis."""
     fig, axes = subplots(2, 2, figsize=(11, 6.4), sharex=True, margins=(0.83, 0.72, 0.48, 0.55),
-                         gridspec_kw={"wspace": 0.36, "hspace": 0.05})
+                         gridspec_kw={"wspace": 0.4, "hspace": 0.05})
     for i, axis in enumerate(("roll", "pitch")):
         top, bottom = axes[0, i], axes[1, i]
         top.plot(result.time, result.reference[:, i], "k--", lw=1.2, label="reference")
@@ -314,7 +265,7 @@ def tracking_figure(result, path: str | Path, title: str = "") -> Path:
 
 def error_comparison_figure(results: list, path: str | Path, title: str = "") -> Path:
     """Thesis Figs 5.6/5.7 and 5.10/5.11: the tracking error of several controllers per axis."""
-    fig, axes = subplots(1, 2, figsize=(11, 3.6), margins=(0.72, 0.1, 0.49, 0.27), gridspec_kw={"wspace": 0.19})
+    fig, axes = subplots(1, 2, figsize=(11, 3.6), margins=(0.85, 0.1, 0.49, 0.27), gridspec_kw={"wspace": 0.19})
     for i, (ax, axis) in enumerate(zip(axes, ("roll", "pitch"))):
         for r in results:
             ax.plot(r.time, r.error[:, i], lw=1.0, label=r.controller)
@@ -327,7 +278,7 @@ def error_comparison_figure(results: list, path: str | Path, title: str = "") ->
 def barrier_figure(runs: dict, path: str | Path) -> Path:
     """Barrier value along each safety scenario (``{scenario: {filter: SafetyRun}}``): B <= 0 is
     safe; the unfiltered run shows where the nominal controller would have gone."""
-    fig, axes = subplots(1, len(runs), figsize=(4.2 * len(runs), 3.4), margins=(0.58, 0.1, 0.49, 0.27),
+    fig, axes = subplots(1, len(runs), figsize=(4.2 * len(runs), 3.4), margins=(0.78, 0.1, 0.49, 0.27),
                          squeeze=False, gridspec_kw={"wspace": 0.3})
     for ax, (scenario, by_filter) in zip(axes[0], runs.items()):
         for name, run in by_filter.items():
@@ -352,8 +303,8 @@ def torque_heatmaps(tmap, path: str | Path, drive=None, most: int = 6, image_sam
     shown = (loaded or [0])[:most]
     cols = min(3, len(shown))
     rows_n = -(-len(shown) // cols)
-    fig, axes = subplots(rows_n, cols, figsize=(5.2 * cols, 4.3 * rows_n), margins=(0.64, 0.97, 0.49, 0.62),
-                         squeeze=False, gridspec_kw={"wspace": 0.45, "hspace": 0.22})
+    fig, axes = subplots(rows_n, cols, figsize=(5.2 * cols, 4.3 * rows_n), margins=(0.75, 0.97, 0.49, 0.62),
+                         squeeze=False, gridspec_kw={"wspace": 0.48, "hspace": 0.22})
     axis = [np.degrees(v) if u == "rad" else v for v, u in zip(tmap.values, tmap.units)]
     label = [f"{j} ({'deg' if u == 'rad' else 'm'})" for j, u in zip(tmap.joints, tmap.units)]
     extent = [*_span(axis[1]), *_span(axis[0])]

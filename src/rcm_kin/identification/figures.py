@@ -1,5 +1,6 @@
-"""The grey-box fit drawn (files only): each measured step response beside the physics simulated
-with the starting and the fitted drive parameters."""
+"""The drive train's figures (files only): a measured angle beside its prediction (and band), and
+the grey-box fit, each measured step response beside the physics simulated with the starting and
+the fitted drive parameters."""
 
 from __future__ import annotations
 
@@ -8,6 +9,39 @@ from pathlib import Path
 import numpy as np
 
 from rcm_kin.plotting import save_figure, subplots
+
+
+def _still_spans(time: np.ndarray, angle: np.ndarray, least: float = 0.05) -> list[tuple[float, float]]:
+    """Intervals (s) over which ``angle`` does not change for at least ``least`` s."""
+    moving = np.r_[True, np.diff(angle) != 0.0, True]
+    edges = np.flatnonzero(moving)
+    return [(time[a], time[min(b, time.size - 1)]) for a, b in zip(edges[:-1], edges[1:])
+            if time[min(b, time.size - 1)] - time[a] >= least]
+
+
+def prediction_figure(time, measured, predicted, path: str | Path, title: str = "", band=None,
+                      band_label: str = "prediction band", median=None) -> Path:
+    """Measured and predicted angle (deg) over time (s); bands along the bottom and the top of the
+    axes mark where the measured angle rests and where the model is stuck. ``band``: optional
+    (lower, upper) arrays (deg, same samples) shaded as ``band_label``; ``median``: an optional
+    curve (deg) drawn dotted, the band's median."""
+    fig, ax = subplots(figsize=(8, 3.6), layout="constrained")
+    bands = ((_still_spans(time, measured), "0.8", "measured at rest (lower band)", 0.0, 0.08),
+             (_still_spans(time, predicted), "#9fd49f", "model stuck (upper band)", 0.92, 1.0))
+    for spans, colour, label, low, high in bands:
+        for k, (a, b) in enumerate(spans):
+            ax.axvspan(a, b, ymin=low, ymax=high, color=colour, lw=0, label=label if k == 0 else None)
+    if band is not None:
+        ax.fill_between(time, band[0], band[1], color="tab:blue", alpha=0.25, lw=0, label=band_label)
+    ax.plot(time, measured, "k", lw=1.4, label="measured")
+    ax.plot(time, predicted, color="tab:green", lw=1.2, ls="--", label="predicted (recorded PWM, no refit)")
+    if median is not None:
+        ax.plot(time, median, color="tab:blue", lw=1.0, ls=":", label="band median")
+    ax.set(xlabel="time (s)", ylabel="angle (deg)", title=title)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    ax.grid(alpha=0.3)
+    return save_figure(fig, path)
+
 
 GREYBOX_STYLES = {"measured": {"color": "k", "lw": 1.5},
                   "starting": {"color": "tab:blue", "lw": 4.5, "alpha": 0.35},
