@@ -19,7 +19,7 @@ def shortfall(fig) -> tuple[float, float, float]:
     with the labels facing it and :data:`APART`, to the next axes on that side. Zeros when
     everything fits."""
     width = fig.get_size_inches()[0]
-    boxes = [(ax, ax.get_position()) for ax in fig.axes if ax.get_visible() and ax.name == "rectilinear"]
+    boxes = [(ax, _placed(ax)) for ax in fig.axes if ax.get_visible() and ax.name == "rectilinear"]
     need = {ax: y_axis_width(ax) for ax, _ in boxes}
     right = {ax: ax.yaxis.get_ticks_position() == "right" for ax, _ in boxes}
     lacking = [0.0, 0.0, 0.0]
@@ -31,6 +31,14 @@ def shortfall(fig) -> tuple[float, float, float]:
         where = 2 if facing else int(right[ax])
         lacking[where] = max(lacking[where], need[ax] + shared - gap * width)
     return lacking[0], lacking[1], lacking[2]
+
+
+def _placed(ax):
+    """Where ``ax`` is drawn (figure fractions): a colour bar's locator and aspect applied as drawing does."""
+    locator = ax.get_axes_locator()
+    if locator is not None:
+        ax.apply_aspect(locator(ax, None))
+    return ax.get_position()
 
 
 def widen(fig, left: float, right: float, between: float) -> None:
