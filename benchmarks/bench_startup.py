@@ -8,7 +8,9 @@ imports, the cached files it reads, and its work):
   (target: at most 4x the Pinocchio import);
 - ``rcm-kin torque-map psm --out DIR`` (61 x 61, the three figures; target at most 6x), and
   ``python -c "import matplotlib.pyplot"`` for scale;
-- ``rcm-kin --help``.
+- ``rcm-kin --help``;
+- with ``--report``: the warm ``rcm-kin report --out DIR`` (target: at most 20x the Pinocchio
+  import), in the same rounds.
 
 In process: ``run_experiment`` of the same simulation, warm (second call), per controller period,
 against the compiled kernel alone (``simulate_compiled`` on the already built plant and law;
@@ -23,7 +25,7 @@ in-process simulation of the same controllers and experiment (target: at most 3x
 caches (compiled functions, numba, gain schedules) are warm: run each command once first, as the
 benchmark does.
 
-    python benchmarks/bench_startup.py [--repeats 5] [--against /tmp/main/src]
+    python benchmarks/bench_startup.py [--repeats 5] [--against /tmp/main/src] [--report]
 """
 
 from __future__ import annotations
@@ -53,18 +55,25 @@ def fresh(args: list[str], src: str = SRC) -> float:
     return time.perf_counter() - start
 
 
-def commands(out: str) -> dict[str, list[str]]:
-    return {"import pinocchio": ["-c", "import pinocchio"],
-            "import matplotlib.pyplot": ["-c", "import matplotlib.pyplot"],
-            "rcm-kin --help": ["-m", "rcm_kin.cli", "--help"],
-            "simulate (31 s, scheduled)": ["-m", "rcm_kin.cli", *SIMULATE],
-            "torque-map psm --out (61 x 61)": ["-m", "rcm_kin.cli", "torque-map", "psm", "--out", out]}
+def commands(out: str, report: bool = False) -> dict[str, list[str]]:
+    cases = {"import pinocchio": ["-c", "import pinocchio"],
+             "import matplotlib.pyplot": ["-c", "import matplotlib.pyplot"],
+             "import matplotlib Figure, Agg": ["-c", "import matplotlib.figure, matplotlib.backends.backend_agg"],
+             "rcm-kin --help": ["-m", "rcm_kin.cli", "--help"],
+             "simulate (31 s, scheduled)": ["-m", "rcm_kin.cli", *SIMULATE],
+             "torque-map psm --out (61 x 61)": ["-m", "rcm_kin.cli", "torque-map", "psm", "--out", out],
+             "torque-map psm --no-figures": ["-m", "rcm_kin.cli", "torque-map", "psm", "--out", f"{out}/tables",
+                                             "--no-figures"]}
+    if report:
+        cases["report --out (warm)"] = ["-m", "rcm_kin.cli", "report", "--out", f"{out}/report"]
+    return cases
 
 
-def fresh_processes(repeats: int, against: str | None) -> None:
+def fresh_processes(repeats: int, against: str | None, report: bool = False) -> None:
     sources = {"this": SRC} | ({"against": against} if against else {})
+    load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as out:
-        cases = commands(out)
+        cases = commands(out, report)
         best = {(name, label): float("inf") for name in cases for label in sources}
         for name, args in cases.items():           # warm the caches
             for src in sources.values():
@@ -74,7 +83,7 @@ def fresh_processes(repeats: int, against: str | None) -> None:
                 for label, src in sources.items():
                     best[name, label] = min(best[name, label], fresh(args, src))
     base = best["import pinocchio", "this"]
-    print(f"fresh processes, best of {repeats} (load average {os.getloadavg()[0]:.2f}); "
+    print(f"fresh processes, best of {repeats} (load average {load:.2f} before, {os.getloadavg()[0]:.2f} after); "
           f"import pinocchio {base:.3f} s")
     for name in cases:
         row = "  ".join(f"{label} {best[name, label]:6.3f} s = {best[name, label] / base:5.2f}x" for label in sources)
@@ -132,9 +141,10 @@ def main() -> None:
     parser.add_argument("--against", help="another checkout's src folder, run in the same rounds")
     parser.add_argument("--skip-fresh", action="store_true")
     parser.add_argument("--robustness", action="store_true", help="also the robustness samples (about a minute)")
+    parser.add_argument("--report", action="store_true", help="also the warm report (10-20 s a run)")
     args = parser.parse_args()
     if not args.skip_fresh:
-        fresh_processes(args.repeats, args.against)
+        fresh_processes(args.repeats, args.against, args.report)
     in_process()
     if args.robustness:
         robustness(max(1, args.repeats // 2), args.against)
