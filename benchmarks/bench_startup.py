@@ -35,6 +35,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import resource  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -49,10 +50,19 @@ SIMULATE = ["simulate", "psm", "--experiment", "sine", "--controller", "schedule
 
 def fresh(args: list[str], src: str = SRC) -> float:
     """Wall seconds of ``python args`` in a new process with ``src`` first on the path."""
+    return fresh_times(args, src)[0]
+
+
+def fresh_times(args: list[str], src: str = SRC) -> tuple[float, float]:
+    """Wall and CPU seconds (user + system, its child processes included) of ``python args`` in a
+    new process with ``src`` first on the path."""
     env = {**os.environ, "PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1"}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     subprocess.run([sys.executable, *args], env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.perf_counter() - start
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
 
 
 def commands(out: str, report: bool = False) -> dict[str, list[str]]:
@@ -74,19 +84,21 @@ def fresh_processes(repeats: int, against: str | None, report: bool = False) -> 
     load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as out:
         cases = commands(out, report)
-        best = {(name, label): float("inf") for name in cases for label in sources}
+        best = {(name, label): (float("inf"), float("inf")) for name in cases for label in sources}
         for name, args in cases.items():           # warm the caches
             for src in sources.values():
                 fresh(args, src)
         for _ in range(repeats):                   # interleaved: the machine's load falls on all alike
             for name, args in cases.items():
                 for label, src in sources.items():
-                    best[name, label] = min(best[name, label], fresh(args, src))
-    base = best["import pinocchio", "this"]
+                    best[name, label] = tuple(map(min, best[name, label], fresh_times(args, src)))
+    # the same command under each source: its best time is the base of every ratio (wall and CPU)
+    wall, cpu = (min(best["import pinocchio", label][k] for label in sources) for k in (0, 1))
     print(f"fresh processes, best of {repeats} (load average {load:.2f} before, {os.getloadavg()[0]:.2f} after); "
-          f"import pinocchio {base:.3f} s")
+          f"import pinocchio {wall:.3f} s wall, {cpu:.3f} s CPU; ratios wall (CPU)")
     for name in cases:
-        row = "  ".join(f"{label} {best[name, label]:6.3f} s = {best[name, label] / base:5.2f}x" for label in sources)
+        row = "  ".join(f"{label} {best[name, label][0]:6.3f} s = {best[name, label][0] / wall:5.2f}x "
+                        f"({best[name, label][1] / cpu:5.2f}x)" for label in sources)
         print(f"  {name:32} {row}")
 
 
