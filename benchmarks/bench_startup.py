@@ -126,6 +126,50 @@ def in_process() -> None:
           f"{whole / ticks * 1e6:.2f} us, the kernel alone {kernel / ticks * 1e6:.2f} us = {whole / kernel:.2f}x")
 
 
+FIGURES = """
+import sys, time
+import numpy as np
+from types import SimpleNamespace
+from rcm_kin import load_robot, plotting
+from rcm_kin.statics.holding import torque_map
+from rcm_kin.statics.maps import gravity_map, map_drive
+psm = load_robot("psm"); drive = map_drive(psm, None); grid = np.linspace(-30, 30, 61)
+gmap = gravity_map(psm, drive, grid, grid, [0.08])
+sweep = gravity_map(psm, drive, (0.0, 20.0), (-20.0, 0.0, 20.0), np.linspace(0.0, 0.16, 81))
+mtm = load_robot("mtm"); tmap = torque_map(mtm, {"j1": np.radians(grid), "j3": np.radians(grid)})
+t = np.linspace(0.0, 4.0, 1601); wave = np.column_stack([np.sin(3 * t), np.cos(2 * t)])
+run = SimpleNamespace(time=t, reference=wave, measured=0.9 * wave, error=0.1 * wave, pwm=-80 * wave, controller="p")
+out = sys.argv[1]
+draws = {"torque-map: heat maps": lambda: plotting.effort_heatmaps(gmap, drive, f"{out}/a.png"),
+         "torque-map: trend curves": lambda: plotting.thesis_trend_curves(gmap, f"{out}/b.png"),
+         "torque-map: insertion curves": lambda: plotting.insertion_curves(sweep, f"{out}/c.png"),
+         "report: a tracking figure": lambda: plotting.tracking_figure(run, f"{out}/d.png", "sine, p:"),
+         "report: the MTM's torque map": lambda: plotting.torque_heatmaps(tmap, f"{out}/e.png")}
+start = time.process_time()
+import matplotlib.figure, matplotlib.backends.backend_agg
+print("import matplotlib", time.process_time() - start)
+for name, draw in draws.items():
+    times = []
+    for _ in range(4):
+        start = time.process_time(); draw(); times.append(time.process_time() - start)
+    print(name, times[0], min(times[1:]))
+"""
+
+
+def figures(against: str | None) -> None:
+    """CPU seconds of each figure in a fresh process per source: the first drawing (fonts and
+    caches cold) and the best of three more."""
+    print("figures, CPU s in process (first drawing, best of 3 after):")
+    with tempfile.TemporaryDirectory() as out:
+        for label, src in ({"this": SRC} | ({"against": against} if against else {})).items():
+            env = {**os.environ, "PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1"}
+            lines = subprocess.run([sys.executable, "-c", FIGURES, out], env=env, check=True, capture_output=True,
+                                   text=True).stdout.splitlines()
+            for line in lines:
+                name, *numbers = line.rsplit(" ", 2) if line.startswith(("torque", "report")) else line.rsplit(" ", 1)
+                print(f"  {label:8} {name:32} " + "  ".join(f"{float(x):.3f}" for x in numbers))
+
+
 ROBUSTNESS = ["-m", "rcm_kin.cli", "robustness", "psm", "--controller", "p", "--controller", "scheduled",
               "--experiment", "sine", "--json", "--samples"]
 
@@ -154,9 +198,12 @@ def main() -> None:
     parser.add_argument("--skip-fresh", action="store_true")
     parser.add_argument("--robustness", action="store_true", help="also the robustness samples (about a minute)")
     parser.add_argument("--report", action="store_true", help="also the warm report (10-20 s a run)")
+    parser.add_argument("--figures", action="store_true", help="also each figure's drawing in process")
     args = parser.parse_args()
     if not args.skip_fresh:
         fresh_processes(args.repeats, args.against, args.report)
+    if args.figures:
+        figures(args.against)
     in_process()
     if args.robustness:
         robustness(max(1, args.repeats // 2), args.against)
