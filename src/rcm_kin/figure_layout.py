@@ -76,7 +76,7 @@ def _tick_labels(axis) -> list[str]:
 def pin_titles(fig) -> None:
     """Keep each axes' title at its default place (1.0, the pad above the axes) where matplotlib
     would leave it there anyway, so that drawing skips its title placement (which lays out the
-    y-axis tick labels of the axes and its siblings once more: a fifth of a figure's drawing time):
+    y-axis tick labels of the axes and its siblings once more: 2-7 % of a figure's drawing time):
     a plain 2-D axes without child axes whose siblings' x ticks and labels are all at the bottom
     and none of whose y-axes shows an offset text (``1e-5``, ``+2.1``) for the title to clear."""
     for ax in fig.axes:
