@@ -16,8 +16,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from rcm_kin.dynamics.drive import load_drive_parameters
+from rcm_kin.identification.figures import greybox_figure
 from rcm_kin.identification.greybox import fit_greybox, step_logs, write_greybox_parameters
-from rcm_kin.plotting import error_comparison_figure, greybox_figure, tracking_figure
+from rcm_kin.plotting import error_comparison_figure, tracking_figure
 from rcm_kin.simulation.controllers import CONTROLLERS, make_controller
 from rcm_kin.simulation.experiments import experiment_reference, psm_plant_and_schedule, start_hold
 from rcm_kin.simulation.firmware import FirmwareSettings

@@ -8,7 +8,9 @@ imports, the cached files it reads, and its work):
   (target: at most 4x the Pinocchio import);
 - ``rcm-kin torque-map psm --out DIR`` (61 x 61, the three figures; target at most 6x), and
   ``python -c "import matplotlib.pyplot"`` for scale;
-- ``rcm-kin --help``.
+- ``rcm-kin --help``;
+- with ``--report``: the warm ``rcm-kin report --out DIR`` (target: at most 20x the Pinocchio
+  import), in the same rounds.
 
 In process: ``run_experiment`` of the same simulation, warm (second call), per controller period,
 against the compiled kernel alone (``simulate_compiled`` on the already built plant and law;
@@ -25,7 +27,7 @@ after the first sample).
 caches (compiled functions and kernel, gain schedules) are warm: run each command once first, as the
 benchmark does.
 
-    python benchmarks/bench_startup.py [--repeats 5] [--against /tmp/main/src]
+    python benchmarks/bench_startup.py [--repeats 5] [--against /tmp/main/src] [--report]
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import resource  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -49,37 +52,55 @@ SIMULATE = ["simulate", "psm", "--experiment", "sine", "--controller", "schedule
 
 def fresh(args: list[str], src: str = SRC) -> float:
     """Wall seconds of ``python args`` in a new process with ``src`` first on the path."""
+    return fresh_times(args, src)[0]
+
+
+def fresh_times(args: list[str], src: str = SRC) -> tuple[float, float]:
+    """Wall and CPU seconds (user + system, its child processes included) of ``python args`` in a
+    new process with ``src`` first on the path."""
     env = {**os.environ, "PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1"}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     subprocess.run([sys.executable, *args], env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.perf_counter() - start
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
 
 
-def commands(out: str) -> dict[str, list[str]]:
-    return {"import pinocchio": ["-c", "import pinocchio"],
-            "import matplotlib.pyplot": ["-c", "import matplotlib.pyplot"],
-            "rcm-kin --help": ["-m", "rcm_kin.cli", "--help"],
-            "simulate (31 s, scheduled)": ["-m", "rcm_kin.cli", *SIMULATE],
-            "torque-map psm --out (61 x 61)": ["-m", "rcm_kin.cli", "torque-map", "psm", "--out", out]}
+def commands(out: str, report: bool = False) -> dict[str, list[str]]:
+    cases = {"import pinocchio": ["-c", "import pinocchio"],
+             "import matplotlib.pyplot": ["-c", "import matplotlib.pyplot"],
+             "import matplotlib Figure, Agg": ["-c", "import matplotlib.figure, matplotlib.backends.backend_agg"],
+             "rcm-kin --help": ["-m", "rcm_kin.cli", "--help"],
+             "simulate (31 s, scheduled)": ["-m", "rcm_kin.cli", *SIMULATE],
+             "torque-map psm --out (61 x 61)": ["-m", "rcm_kin.cli", "torque-map", "psm", "--out", out],
+             "torque-map psm --no-figures": ["-m", "rcm_kin.cli", "torque-map", "psm", "--out", f"{out}/tables",
+                                             "--no-figures"]}
+    if report:
+        cases["report --out (warm)"] = ["-m", "rcm_kin.cli", "report", "--out", f"{out}/report"]
+    return cases
 
 
-def fresh_processes(repeats: int, against: str | None) -> None:
+def fresh_processes(repeats: int, against: str | None, report: bool = False) -> None:
     sources = {"this": SRC} | ({"against": against} if against else {})
+    load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as out:
-        cases = commands(out)
-        best = {(name, label): float("inf") for name in cases for label in sources}
+        cases = commands(out, report)
+        best = {(name, label): (float("inf"), float("inf")) for name in cases for label in sources}
         for name, args in cases.items():           # warm the caches
             for src in sources.values():
                 fresh(args, src)
         for _ in range(repeats):                   # interleaved: the machine's load falls on all alike
             for name, args in cases.items():
                 for label, src in sources.items():
-                    best[name, label] = min(best[name, label], fresh(args, src))
-    base = best["import pinocchio", "this"]
-    print(f"fresh processes, best of {repeats} (load average {os.getloadavg()[0]:.2f}); "
-          f"import pinocchio {base:.3f} s")
+                    best[name, label] = tuple(map(min, best[name, label], fresh_times(args, src)))
+    # the same command under each source: its best time is the base of every ratio (wall and CPU)
+    wall, cpu = (min(best["import pinocchio", label][k] for label in sources) for k in (0, 1))
+    print(f"fresh processes, best of {repeats} (load average {load:.2f} before, {os.getloadavg()[0]:.2f} after); "
+          f"import pinocchio {wall:.3f} s wall, {cpu:.3f} s CPU; ratios wall (CPU)")
     for name in cases:
-        row = "  ".join(f"{label} {best[name, label]:6.3f} s = {best[name, label] / base:5.2f}x" for label in sources)
+        row = "  ".join(f"{label} {best[name, label][0]:6.3f} s = {best[name, label][0] / wall:5.2f}x "
+                        f"({best[name, label][1] / cpu:5.2f}x)" for label in sources)
         print(f"  {name:32} {row}")
 
 
@@ -105,6 +126,50 @@ def in_process() -> None:
     ticks = reference.time.size + round(1.0 / settings.period)
     print(f"in process, per controller period (31 s + 1 s settling, {ticks} periods): run_experiment "
           f"{whole / ticks * 1e6:.2f} us, the kernel alone {kernel / ticks * 1e6:.2f} us = {whole / kernel:.2f}x")
+
+
+FIGURES = """
+import sys, time
+import numpy as np
+from types import SimpleNamespace
+from rcm_kin import load_robot, plotting
+from rcm_kin.statics.holding import torque_map
+from rcm_kin.statics.maps import gravity_map, map_drive
+psm = load_robot("psm"); drive = map_drive(psm, None); grid = np.linspace(-30, 30, 61)
+gmap = gravity_map(psm, drive, grid, grid, [0.08])
+sweep = gravity_map(psm, drive, (0.0, 20.0), (-20.0, 0.0, 20.0), np.linspace(0.0, 0.16, 81))
+mtm = load_robot("mtm"); tmap = torque_map(mtm, {"j1": np.radians(grid), "j3": np.radians(grid)})
+t = np.linspace(0.0, 4.0, 1601); wave = np.column_stack([np.sin(3 * t), np.cos(2 * t)])
+run = SimpleNamespace(time=t, reference=wave, measured=0.9 * wave, error=0.1 * wave, pwm=-80 * wave, controller="p")
+out = sys.argv[1]
+draws = {"torque-map: heat maps": lambda: plotting.effort_heatmaps(gmap, drive, f"{out}/a.png"),
+         "torque-map: trend curves": lambda: plotting.thesis_trend_curves(gmap, f"{out}/b.png"),
+         "torque-map: insertion curves": lambda: plotting.insertion_curves(sweep, f"{out}/c.png"),
+         "report: a tracking figure": lambda: plotting.tracking_figure(run, f"{out}/d.png", "sine, p:"),
+         "report: the MTM's torque map": lambda: plotting.torque_heatmaps(tmap, f"{out}/e.png")}
+start = time.process_time()
+import matplotlib.figure, matplotlib.backends.backend_agg
+print("import matplotlib", time.process_time() - start)
+for name, draw in draws.items():
+    times = []
+    for _ in range(4):
+        start = time.process_time(); draw(); times.append(time.process_time() - start)
+    print(name, times[0], min(times[1:]))
+"""
+
+
+def figures(against: str | None) -> None:
+    """CPU seconds of each figure in a fresh process per source: the first drawing (fonts and
+    caches cold) and the best of three more."""
+    print("figures, CPU s in process (first drawing, best of 3 after):")
+    with tempfile.TemporaryDirectory() as out:
+        for label, src in ({"this": SRC} | ({"against": against} if against else {})).items():
+            env = {**os.environ, "PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1"}
+            lines = subprocess.run([sys.executable, "-c", FIGURES, out], env=env, check=True, capture_output=True,
+                                   text=True).stdout.splitlines()
+            for line in lines:
+                name, *numbers = line.rsplit(" ", 2) if line.startswith(("torque", "report")) else line.rsplit(" ", 1)
+                print(f"  {label:8} {name:32} " + "  ".join(f"{float(x):.3f}" for x in numbers))
 
 
 ROBUSTNESS = ["-m", "rcm_kin.cli", "robustness", "psm", "--controller", "p", "--controller", "scheduled",
@@ -153,9 +218,13 @@ def main() -> None:
     parser.add_argument("--against", help="another checkout's src folder, run in the same rounds")
     parser.add_argument("--skip-fresh", action="store_true")
     parser.add_argument("--robustness", action="store_true", help="also the robustness samples (about a minute)")
+    parser.add_argument("--report", action="store_true", help="also the warm report (10-20 s a run)")
+    parser.add_argument("--figures", action="store_true", help="also each figure's drawing in process")
     args = parser.parse_args()
     if not args.skip_fresh:
-        fresh_processes(args.repeats, args.against)
+        fresh_processes(args.repeats, args.against, args.report)
+    if args.figures:
+        figures(args.against)
     in_process()
     if args.robustness:
         robustness(max(1, args.repeats // 2), args.against)

@@ -25,7 +25,7 @@ LAYERS = [
     ("model",),
     ("kinematics",),
     ("dynamics",),
-    ("plotting", "statics"),
+    ("plotting", "figure_layout", "statics"),
     ("control",),
     ("codegen", "simulation", "identification", "export", "visualization"),
     ("robustness", "safety", "tuning", "ros2"),

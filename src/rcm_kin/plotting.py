@@ -1,6 +1,9 @@
 """Matplotlib figures (files only, no display): heat maps of the holding effort and the curves of
 thesis Figs 4.6/4.7 (roll effort versus roll, pitch effort versus pitch, each at several values
-of the other joint)."""
+of the other joint), tracking, stability and barrier figures of the simulations.
+
+Figures are drawn on matplotlib's ``Figure`` and Agg canvas (:func:`subplots`), never pyplot's
+managers; those of ``torque-map`` and the report on fixed margins (no layout solved when drawn)."""
 
 from __future__ import annotations
 
@@ -12,6 +15,7 @@ import numpy as np
 from rcm_kin.atomic import atomic_path
 from rcm_kin.dynamics.drive import DRIVEN
 from rcm_kin.errors import RcmKinError
+from rcm_kin.figure_layout import pin_titles, shortfall, widen
 from rcm_kin.hardware import FIRMWARE_PERIOD
 from rcm_kin.thesis import FIGURES
 
@@ -28,15 +32,31 @@ FIXED = {"heatmaps": {"left": 0.06, "right": 0.97, "bottom": 0.11, "top": 0.87, 
 
 
 @functools.cache
-def pyplot():
-    """``matplotlib.pyplot`` on the Agg backend (files only, no display), imported when the first
-    figure is drawn, not when rcm_kin is: a command that draws nothing never pays for it."""
-    import matplotlib
+def _agg() -> tuple[type, type]:
+    """matplotlib's ``Figure`` and the Agg canvas (files only, no display), imported when the first
+    figure is drawn, not when rcm_kin is: a command that draws nothing never pays for it. Not
+    pyplot: its figure managers and backend switching are not needed to write files."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    return Figure, FigureCanvasAgg
 
-    return plt
+
+def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], layout: str | None = None,
+             margins: tuple[float, float, float, float] | None = None, **kwargs):
+    """A new figure of ``figsize`` (inches) on the Agg canvas and its grid of axes, as
+    ``pyplot.subplots`` makes them (``kwargs``: ``squeeze``, ``sharex``, ``gridspec_kw``, ...).
+    ``margins``: the grid's (left, right, bottom, top) distances from the figure's edges in
+    inches, fixed: no layout is solved when the figure is drawn (a constrained layout measures
+    every label, about half the drawing time of a figure)."""
+    figure, canvas = _agg()
+    fig = figure(figsize=figsize, layout=layout)
+    canvas(fig)
+    if margins is not None:
+        (width, height), (left, right, bottom, top) = figsize, margins
+        kwargs["gridspec_kw"] = {"left": left / width, "right": 1 - right / width, "bottom": bottom / height,
+                                 "top": 1 - top / height, **kwargs.get("gridspec_kw", {})}
+    return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
 def figure_format(path: str | Path) -> str:
@@ -48,8 +68,12 @@ def figure_format(path: str | Path) -> str:
 
 def save_figure(fig, path: str | Path) -> Path:
     """Write the figure as a PNG (110 dpi; zlib level 3: a sixth larger than the default 6, the same
-    pixels, written in a fraction of the time) and free it."""
+    pixels, written in a fraction of the time). A figure on fixed margins is widened where its y
+    tick labels would not fit them, and its titles pinned (:mod:`rcm_kin.figure_layout`)."""
     path = Path(path)
+    if fig.get_layout_engine() is None:
+        widen(fig, *shortfall(fig))
+    pin_titles(fig)
     try:
         with atomic_path(path) as temporary:    # the format named: matplotlib would add a suffix to a bare name
             fig.savefig(temporary, dpi=110, format=figure_format(path), pil_kwargs={"compress_level": 3})
@@ -57,42 +81,7 @@ def save_figure(fig, path: str | Path) -> Path:
         raise
     except (OSError, ValueError) as exc:
         raise RcmKinError(f"cannot write the figure {path}: {exc}") from None
-    finally:
-        pyplot().close(fig)
     return path
-
-
-def _still_spans(time: np.ndarray, angle: np.ndarray, least: float = 0.05) -> list[tuple[float, float]]:
-    """Intervals (s) over which ``angle`` does not change for at least ``least`` s."""
-    moving = np.r_[True, np.diff(angle) != 0.0, True]
-    edges = np.flatnonzero(moving)
-    return [(time[a], time[min(b, time.size - 1)]) for a, b in zip(edges[:-1], edges[1:])
-            if time[min(b, time.size - 1)] - time[a] >= least]
-
-
-def prediction_figure(time, measured, predicted, path: str | Path, title: str = "", band=None,
-                      band_label: str = "prediction band", median=None) -> Path:
-    """Measured and predicted angle (deg) over time (s); bands along the bottom and the top of the
-    axes mark where the measured angle rests and where the model is stuck. ``band``: optional
-    (lower, upper) arrays (deg, same samples) shaded as ``band_label``; ``median``: an optional
-    curve (deg) drawn dotted, the band's median."""
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(8, 3.6), constrained_layout=True)
-    bands = ((_still_spans(time, measured), "0.8", "measured at rest (lower band)", 0.0, 0.08),
-             (_still_spans(time, predicted), "#9fd49f", "model stuck (upper band)", 0.92, 1.0))
-    for spans, colour, label, low, high in bands:
-        for k, (a, b) in enumerate(spans):
-            ax.axvspan(a, b, ymin=low, ymax=high, color=colour, lw=0, label=label if k == 0 else None)
-    if band is not None:
-        ax.fill_between(time, band[0], band[1], color="tab:blue", alpha=0.25, lw=0, label=band_label)
-    ax.plot(time, measured, "k", lw=1.4, label="measured")
-    ax.plot(time, predicted, color="tab:green", lw=1.2, ls="--", label="predicted (recorded PWM, no refit)")
-    if median is not None:
-        ax.plot(time, median, color="tab:blue", lw=1.0, ls=":", label="band median")
-    ax.set(xlabel="time (s)", ylabel="angle (deg)", title=title)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
-    ax.grid(alpha=0.3)
-    return save_figure(fig, path)
 
 
 def effort_heatmaps(gmap, drive, path: str | Path, insertion_index: int = 0, image_samples: int = IMAGE_SAMPLES,
@@ -105,9 +94,8 @@ def effort_heatmaps(gmap, drive, path: str | Path, insertion_index: int = 0, ima
     ``image_samples`` per axis, both ends kept), the contour lines (9 levels, matplotlib's choice
     over the whole grid's range) traced on at most ``contour_samples`` evenly spread poses per axis
     (:func:`spread_samples`); the colour scale is the whole grid's."""
-    plt = pyplot()
     pwm = gmap.effort.pwm
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6), gridspec_kw=FIXED["heatmaps"])   # fixed: no layout solve
+    fig, axes = subplots(1, 2, figsize=(11, 4.6), gridspec_kw=FIXED["heatmaps"])   # fixed: no layout solve
     extent = [*_span(gmap.roll_deg), *_span(gmap.pitch_deg)]
     rows, cols = (spread_samples(n, contour_samples) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
     pixels = tuple(slice(None, None, image_stride(n, image_samples)) for n in (gmap.pitch_deg.size, gmap.roll_deg.size))
@@ -176,9 +164,8 @@ def _same_as(curve: np.ndarray, earlier: dict) -> str:
 def thesis_trend_curves(gmap, path: str | Path, insertion_index: int = 0, others=(-15.0, 0.0, 15.0)) -> Path:
     """Fig 4.6 (|roll voltage| vs roll) and Fig 4.7 (pitch voltage vs pitch), computed. Every
     curve has its own line style; one lying on another says so in the legend."""
-    plt = pyplot()
     e = gmap.effort
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw=FIXED["trends"])
+    fig, (a, b) = subplots(1, 2, figsize=(11, 4.2), gridspec_kw=FIXED["trends"])
     drawn_a, drawn_b = {}, {}
     for k, other in enumerate(others):
         i = int(np.argmin(np.abs(gmap.pitch_deg - other)))
@@ -205,10 +192,11 @@ def insertion_curves(gmap, path: str | Path) -> Path:
     """Holding torque of roll and pitch and holding force of the insertion versus the insertion,
     one curve per (roll, pitch) pose of the map: colour and marker by pitch, line style by roll;
     the markers of the poses are staggered, so curves that coincide still show each pose."""
-    plt = pyplot()
+    from matplotlib import colormaps
+
     e = gmap.effort
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.9), gridspec_kw=FIXED["insertion"])
-    colours = plt.get_cmap("viridis")(np.linspace(0.0, 0.85, len(gmap.pitch_deg)))
+    fig, axes = subplots(1, 3, figsize=(13, 3.9), gridspec_kw=FIXED["insertion"])
+    colours = colormaps["viridis"](np.linspace(0.0, 0.85, len(gmap.pitch_deg)))
     quantities = (("roll holding torque", "N m"), ("pitch holding torque", "N m"), ("insertion holding force", "N"))
     for k, (ax, (name, unit)) in enumerate(zip(axes, quantities)):
         for i, roll in enumerate(gmap.roll_deg):
@@ -232,11 +220,11 @@ def stability_maps(surveys: dict, path: str | Path) -> Path:
     """Per survey (title -> StabilitySurvey): the 400 Hz firmware loop's slowest decay rate
     ``-ln(spectral radius) / T`` (1/s; negative = unstable) over roll x pitch, all panels on one
     symmetric colour scale (zero, the stability limit, in the middle), each with its range."""
-    plt = pyplot()
-
     decays = {title: -np.log(s.spectral_radius) / FIRMWARE_PERIOD for title, s in surveys.items()}
     limit = max(float(np.abs(d).max()) for d in decays.values()) or 1.0
-    fig, axes = plt.subplots(1, len(surveys), figsize=(5 * len(surveys), 4.3), layout="constrained", squeeze=False)
+    size = (5 * len(surveys), 4.3)       # fixed margins, the colour bar 0.75 in from the right edge
+    fig, axes = subplots(1, len(surveys), figsize=size, margins=(0.65, 1.5, 0.49, 0.27), squeeze=False,
+                         gridspec_kw={"wspace": 0.21})
     for ax, (title, s) in zip(axes[0], surveys.items()):
         decay = decays[title]
         extent = [s.roll_deg[0], s.roll_deg[-1], s.pitch_deg[0], s.pitch_deg[-1]]
@@ -248,15 +236,16 @@ def stability_maps(surveys: dict, path: str | Path) -> Path:
         ax.text(0.03, 0.04, f"decay {decay.min():+.3g} to {decay.max():+.3g} 1/s\n{verdict}",
                 transform=ax.transAxes, fontsize=8, bbox={"facecolor": "white", "alpha": 0.85, "lw": 0})
         ax.set(xlabel="roll (deg)", ylabel="pitch (deg)", title=title)
-    fig.colorbar(im, ax=axes[0].tolist(), label="slowest decay rate, 1/s (< 0 unstable; one scale for all)")
+    bar = fig.add_axes((1 - 0.75 / size[0], 0.49 / size[1], 0.18 / size[0], 1 - 0.76 / size[1]))
+    fig.colorbar(im, cax=bar, label="slowest decay rate, 1/s (< 0 unstable; one scale for all)")
     return save_figure(fig, path)
 
 
 def tracking_figure(result, path: str | Path, title: str = "") -> Path:
     """Thesis Figs 5.2-5.5 and 5.8-5.9: reference and measured angle per axis (top) and the
     tracking error (bottom), with the PWM sent on a second axis."""
-    plt = pyplot()
-    fig, axes = plt.subplots(2, 2, figsize=(11, 6.4), sharex=True, layout="constrained")
+    fig, axes = subplots(2, 2, figsize=(11, 6.4), sharex=True, margins=(0.83, 0.72, 0.48, 0.55),
+                         gridspec_kw={"wspace": 0.4, "hspace": 0.05})
     for i, axis in enumerate(("roll", "pitch")):
         top, bottom = axes[0, i], axes[1, i]
         top.plot(result.time, result.reference[:, i], "k--", lw=1.2, label="reference")
@@ -276,8 +265,7 @@ def tracking_figure(result, path: str | Path, title: str = "") -> Path:
 
 def error_comparison_figure(results: list, path: str | Path, title: str = "") -> Path:
     """Thesis Figs 5.6/5.7 and 5.10/5.11: the tracking error of several controllers per axis."""
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 3.6), constrained_layout=True)
+    fig, axes = subplots(1, 2, figsize=(11, 3.6), margins=(0.85, 0.1, 0.49, 0.27), gridspec_kw={"wspace": 0.19})
     for i, (ax, axis) in enumerate(zip(axes, ("roll", "pitch"))):
         for r in results:
             ax.plot(r.time, r.error[:, i], lw=1.0, label=r.controller)
@@ -287,67 +275,11 @@ def error_comparison_figure(results: list, path: str | Path, title: str = "") ->
     return save_figure(fig, path)
 
 
-GREYBOX_STYLES = {"measured": {"color": "k", "lw": 1.5},
-                  "starting": {"color": "tab:blue", "lw": 4.5, "alpha": 0.35},
-                  "fitted": {"color": "tab:orange", "lw": 1.6, "ls": "--"},
-                  "own_coulomb": {"color": "tab:green", "lw": 1.6, "ls": ":"}}
-GREYBOX_LABELS = {"measured": "measured", "starting": "starting set", "fitted": "fitted set (median Coulomb)",
-                  "own_coulomb": "fitted set, each log's own Coulomb"}
-
-
-def _measured_limits(measured: np.ndarray) -> tuple[float, float]:
-    """y-limits from the measured response (and zero), with room above and below."""
-    low, high = min(float(np.min(measured)), 0.0), max(float(np.max(measured)), 0.0)
-    span = (high - low) or 1.0
-    return low - 0.15 * span, high + 0.25 * span
-
-
-def _note_clipped(ax, response: dict, limits: tuple[float, float]) -> None:
-    """Say in the panel which simulated curves leave the axes, and how far they go."""
-    notes = []
-    for key in ("starting", "fitted", "own_coulomb"):
-        y = np.asarray(response[key])
-        if y.max() > limits[1] or y.min() < limits[0]:
-            far = y.max() if y.max() > limits[1] else y.min()
-            notes.append(f"{GREYBOX_LABELS[key].split(' (')[0]} off scale (to {far:+.3g})")
-    if notes:
-        ax.text(0.98, 0.03, "\n".join(notes), transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
-                bbox={"facecolor": "white", "alpha": 0.85, "lw": 0})
-
-
-def greybox_figure(fit, path: str | Path) -> Path:
-    """Measured step responses beside the physics simulated with the starting and the fitted
-    parameters (and each log's own Coulomb friction), one panel per log. The y-axis is the
-    measured response's; a simulated curve beyond it is clipped and the panel says so. The
-    starting set is a broad pale band under the fitted set's dashes, so both show where they agree."""
-    plt = pyplot()
-    n = len(fit.logs)
-    cols = min(n, 3)
-    rows = -(-n // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(4.4 * cols, 3.3 * rows + 0.5), layout="constrained", squeeze=False)
-    for ax, name, r, before, after, own in zip(axes.flat, fit.logs, fit.responses, fit.fit_before, fit.fit_after,
-                                               fit.fit_per_log_friction):
-        for key in ("starting", "fitted", "own_coulomb", "measured"):
-            ax.plot(r["time"], r[key], label=GREYBOX_LABELS[key], **GREYBOX_STYLES[key])
-        limits = _measured_limits(r["measured"])
-        ax.set_ylim(*limits)
-        _note_clipped(ax, r, limits)
-        ax.set(title=f"{name.replace('.csv', '')}\nfit: starting {before:.0f} %, fitted {after:.0f} %, "
-                     f"own Coulomb {own:.0f} %", xlabel="time (s)", ylabel=f"{fit.joint} change (deg)")
-        ax.title.set_fontsize(8)
-        ax.grid(alpha=0.3)
-    for ax in axes.flat[n:]:
-        ax.axis("off")
-    handles, labels = axes.flat[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside upper center", ncol=4, fontsize=8)
-    return save_figure(fig, path)
-
-
 def barrier_figure(runs: dict, path: str | Path) -> Path:
     """Barrier value along each safety scenario (``{scenario: {filter: SafetyRun}}``): B <= 0 is
     safe; the unfiltered run shows where the nominal controller would have gone."""
-    plt = pyplot()
-    fig, axes = plt.subplots(1, len(runs), figsize=(4.2 * len(runs), 3.4), constrained_layout=True, squeeze=False)
+    fig, axes = subplots(1, len(runs), figsize=(4.2 * len(runs), 3.4), margins=(0.78, 0.1, 0.49, 0.27),
+                         squeeze=False, gridspec_kw={"wspace": 0.3})
     for ax, (scenario, by_filter) in zip(axes[0], runs.items()):
         for name, run in by_filter.items():
             ax.plot(run.time, run.barrier, lw=1.0, label=name, ls=":" if name == "none" else "-")
@@ -365,14 +297,14 @@ def torque_heatmaps(tmap, path: str | Path, drive=None, most: int = 6, image_sam
     the robot's order), ``joint_a`` up, ``joint_b`` across (degrees for revolute joints, m for
     prismatic). With a drive (``drive``, default the map's ``params``) a driven joint's colour bar has a second
     scale in PWM counts (hardware sign). Large grids are drawn from samples as :func:`effort_heatmaps`."""
-    plt = pyplot()
     drive = tmap.params if drive is None else drive
     scale = float(np.abs(tmap.tau).max()) if tmap.tau.size else 0.0
     loaded = [k for k in range(len(tmap.actuated)) if np.abs(tmap.tau[..., k]).max() > 1e-9 + 1e-6 * scale]
     shown = (loaded or [0])[:most]
     cols = min(3, len(shown))
     rows_n = -(-len(shown) // cols)
-    fig, axes = plt.subplots(rows_n, cols, figsize=(5.2 * cols, 4.3 * rows_n), layout="constrained", squeeze=False)
+    fig, axes = subplots(rows_n, cols, figsize=(5.2 * cols, 4.3 * rows_n), margins=(0.75, 0.97, 0.49, 0.62),
+                         squeeze=False, gridspec_kw={"wspace": 0.48, "hspace": 0.22})
     axis = [np.degrees(v) if u == "rad" else v for v, u in zip(tmap.values, tmap.units)]
     label = [f"{j} ({'deg' if u == 'rad' else 'm'})" for j, u in zip(tmap.joints, tmap.units)]
     extent = [*_span(axis[1]), *_span(axis[0])]
@@ -388,8 +320,10 @@ def torque_heatmaps(tmap, path: str | Path, drive=None, most: int = 6, image_sam
                        levels=contour_levels(data, 9))
         ax.set(xlabel=label[1], ylabel=label[0], title=f"{joint} holding torque")
         unit = tmap.tau_units[k]
-        bar = fig.colorbar(im, ax=ax, label=f"{'force' if unit == 'N' else 'torque'} ({unit})")
-        if drive is not None and joint in tmap.driven:
+        driven = drive is not None and joint in tmap.driven      # room for the PWM scale left of the bar
+        bar = fig.colorbar(im, ax=ax, label=f"{'force' if unit == 'N' else 'torque'} ({unit})", fraction=0.05,
+                           pad=0.2 if driven else 0.05)
+        if driven:
             gain = drive[joint].pwm_per_torque
             bar.ax.secondary_yaxis("left", functions=(lambda t, c=gain: t * c, lambda p, c=gain: p / c)).set_ylabel(
                 "PWM (counts, hardware sign)")

@@ -41,10 +41,8 @@ def drawn(monkeypatch, gmap, drive, **options):
 
 def plain_contour(x, y, z):
     """matplotlib's own contour of the whole data, 9 levels, on a figure of its own."""
-    fig = figures.pyplot().figure()
-    contours = fig.add_subplot().contour(x, y, z, levels=9)
-    figures.pyplot().close(fig)
-    return contours
+    _, ax = figures.subplots(figsize=(6.4, 4.8))
+    return ax.contour(x, y, z, levels=9)
 
 
 def panels(fig, traced):
@@ -67,7 +65,6 @@ def test_small_map_is_drawn_from_the_whole_grid(psm_drive, monkeypatch):
         assert np.array_equal(ours.levels, plain.levels)                # matplotlib's own choice of 9 levels
         for a, b in zip(ours.get_paths(), plain.get_paths(), strict=True):
             assert np.array_equal(a.vertices, b.vertices)
-    figures.pyplot().close(fig)
 
 
 def pixel_difference(a, b) -> tuple[float, float, float]:
@@ -100,7 +97,6 @@ def test_large_map_drawn_from_samples_looks_the_same(psm_drive, monkeypatch, tmp
         assert np.array_equal(z, data[np.ix_(rows, cols)])
         levels = ax.collections[0].levels
         assert np.array_equal(levels, plain_contour(grid, grid, data).levels)   # the whole grid's levels
-    figures.pyplot().close(fig)
     drive = psm_drive[1]
     whole = figures.effort_heatmaps(gmap, drive, tmp_path / "whole.png", image_samples=801, contour_samples=801)
     contours = figures.effort_heatmaps(gmap, drive, tmp_path / "contours.png", image_samples=801)
@@ -149,7 +145,6 @@ def test_contours_on_samples_keep_the_whole_grids_levels_and_colours(psm_drive, 
         assert np.array_equal(ax.collections[0].levels, plain_contour(grid, grid, field).levels)
         assert not np.array_equal(ax.collections[0].levels, plain_contour(x, y, z).levels)
         assert ax.images[0].get_clim() == (-9.0, 9.0)
-    figures.pyplot().close(fig)
 
 
 def test_colour_bars_read_the_drives_voltage(psm_drive, monkeypatch):
@@ -170,4 +165,3 @@ def test_colour_bars_read_the_drives_voltage(psm_drive, monkeypatch):
             on_bar = bar.transData.transform((0.0, end * abs(pwm[at])))[1]
             on_volts = volts.transData.transform((0.0, end * np.sign(pwm[at]) * voltage[at]))[1]
             assert abs(on_bar - on_volts) < 1e-9 * height
-    figures.pyplot().close(fig)

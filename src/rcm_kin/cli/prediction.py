@@ -73,7 +73,7 @@ def cmd_predict(args) -> None:
     if plot:
         title = f"{log.name}, {args.joint}: fit {check.fit_percent:.1f} %"
         if band is None:
-            from rcm_kin.plotting import prediction_figure
+            from rcm_kin.identification.figures import prediction_figure
 
             path = prediction_figure(log.time, np.degrees(log.measured), np.degrees(predicted), plot, title)
         else:

@@ -44,9 +44,9 @@ from scipy.optimize import minimize_scalar
 from rcm_kin.dynamics.stick_slip import AxisFriction, AxisPlant
 from rcm_kin.errors import RcmKinError
 from rcm_kin.identification.drive_train import AxisLog, fit_percent, predict_log
+from rcm_kin.identification.figures import prediction_figure
 from rcm_kin.identification.log_checks import stick_time
 from rcm_kin.identification.telemetry import step_index
-from rcm_kin.plotting import prediction_figure
 from rcm_kin.statics.holding_band import check_level, conformal_half_width
 
 LEVEL = 0.9          # default band level

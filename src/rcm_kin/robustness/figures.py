@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rcm_kin.plotting import pyplot
 from rcm_kin.plotting import save_figure as save
+from rcm_kin.plotting import subplots
 from rcm_kin.robustness.statistics import Robustness
 
 
@@ -22,10 +22,9 @@ def ecdf(values) -> tuple[np.ndarray, np.ndarray]:
 def robustness_figure(result: Robustness, path: str | Path) -> Path:
     """Empirical CDFs of the largest roll and pitch errors (deg) and the firmware loop's spectral
     radius over the samples, a curve per controller (the PID has no radius)."""
-    plt = pyplot()
     from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), layout="constrained")
+    fig, axes = subplots(1, 3, figsize=(13, 3.8), margins=(0.6, 0.1, 0.49, 0.56), gridspec_kw={"wspace": 0.17})
     for c, name in enumerate(result.controllers):
         style = {"where": "post", "label": name, "color": f"C{c}"}
         for a, title in enumerate(("roll", "pitch")):
@@ -52,8 +51,7 @@ def robustness_figure(result: Robustness, path: str | Path) -> Path:
 def counterweight_figure(rows, path: str | Path) -> Path:
     """RMS holding PWM of roll and pitch against the main counterweight's mass, a curve per DPM
     counterweight mass (rows: :class:`~rcm_kin.robustness.sweeps.CounterweightRow`)."""
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained", sharey=True)
+    fig, axes = subplots(1, 2, figsize=(10, 3.8), layout="constrained", sharey=True)
     for dpm in sorted({r.dpm_mass_kg for r in rows}):
         line = sorted((r for r in rows if r.dpm_mass_kg == dpm), key=lambda r: r.main_mass_kg)
         for ax, field in zip(axes, ("rms_pwm_roll", "rms_pwm_pitch")):
@@ -70,8 +68,7 @@ def counterweight_figure(rows, path: str | Path) -> Path:
 def weights_figure(rows, path: str | Path) -> Path:
     """Largest tracking error against RMS PWM per axis, a point per LQR/LQI budget pair, labelled
     (rows: :class:`~rcm_kin.robustness.sweeps.WeightsRow`)."""
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), layout="constrained")
+    fig, axes = subplots(1, 2, figsize=(10, 3.8), layout="constrained")
     for ax, joint in zip(axes, ("roll", "pitch")):
         x = [getattr(r, f"rms_pwm_{joint}") for r in rows]
         y = [getattr(r, f"max_error_{joint}_deg") for r in rows]

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from rcm_kin.control.gain_schedule import GainSchedule
-from rcm_kin.plotting import pyplot
 from rcm_kin.plotting import save_figure as save
+from rcm_kin.plotting import subplots
 from rcm_kin.robustness.figures import ecdf
 from rcm_kin.tuning.objective import AXES
 from rcm_kin.tuning.study import CONTROLLERS
@@ -22,12 +22,11 @@ LABELS = {"thesis": "thesis law (flashed tables)", "lqr": "LQR/LQI schedule (sch
 def study_figure(study: dict, path: str | Path) -> Path:
     """Empirical CDFs of the largest error (deg, log scale) per experiment (rows) and axis (columns)
     of a study as data (:meth:`DesignStudy.to_dict`, or the shipped ``tuning.json``)."""
-    plt = pyplot()
     from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
     experiments = study["experiments"]
-    fig, axes = plt.subplots(len(experiments), 2, figsize=(11, 3.4 * len(experiments)), layout="constrained",
-                             squeeze=False)
+    fig, axes = subplots(len(experiments), 2, figsize=(11, 3.4 * len(experiments)), margins=(0.62, 0.1, 0.49, 0.68),
+                         squeeze=False, gridspec_kw={"wspace": 0.14, "hspace": 0.29})
     for c, name in enumerate(CONTROLLERS):
         for style, draws in (("-", "tuning"), ("--", "held_out")):
             errors = np.array(study["judged"][draws][name]["per_draw"]["max_error_deg"], dtype=float)
@@ -52,8 +51,7 @@ def study_figure(study: dict, path: str | Path) -> Path:
 
 def gains_figure(s: GainSchedule, thesis_tables: dict[str, np.ndarray], path: str | Path) -> Path:
     """A schedule's Kp of roll and pitch over the grid (deg) beside the thesis's tables."""
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6), layout="constrained")
+    fig, axes = subplots(1, 2, figsize=(10, 3.6), margins=(0.65, 0.1, 0.49, 0.27), gridspec_kw={"wspace": 0.16})
     for ax, (axis, table) in zip(axes, (("roll", s.k_roll), ("pitch", s.k_pitch))):
         for j, pitch in enumerate(s.pitch_deg):
             ax.plot(s.roll_deg, table[j, :, 0], "o-", color=f"C{j}", label=f"tuned, pitch {pitch:g} deg")

@@ -6,18 +6,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import matplotlib
+import numpy as np
+import pinocchio as pin
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pinocchio as pin  # noqa: E402
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
-
-from rcm_kin.atomic import atomic_path  # noqa: E402
+from rcm_kin.atomic import atomic_path
 from rcm_kin.model.geometry import visual_geometry
-from rcm_kin.model.reduced import tree_configuration  # noqa: E402
-from rcm_kin.plotting import figure_format  # noqa: E402
+from rcm_kin.model.reduced import tree_configuration
+from rcm_kin.plotting import figure_format, subplots
 
 if TYPE_CHECKING:
     from rcm_kin.model import Robot
@@ -57,8 +53,7 @@ def robot_drawing(robot: Robot, q, path: str | Path, title: str = "", view=(20.0
     data = visual.createData()
     pin.forwardKinematics(robot.tree, robot.tree_data, tree_configuration(robot, robot.check_q(q, allow_short=True)))
     pin.updateGeometryPlacements(robot.tree, robot.tree_data, visual, data)
-    fig = plt.figure(figsize=(6, 6))
-    ax = fig.add_subplot(projection="3d")
+    fig, ax = subplots(figsize=(6, 6), subplot_kw={"projection": "3d"})
     points = []
     for obj, placement in zip(visual.geometryObjects, data.oMg):
         polygons = [f @ placement.rotation.T + placement.translation for f in _faces(obj.geometry)]
@@ -76,5 +71,4 @@ def robot_drawing(robot: Robot, q, path: str | Path, title: str = "", view=(20.0
     path = Path(path)
     with atomic_path(path) as temporary:
         fig.savefig(temporary, dpi=110, bbox_inches="tight", format=figure_format(path))
-    plt.close(fig)
     return path

@@ -39,9 +39,9 @@ def drive_train_section(out: Path, data: Path, joint: str = "roll", cv: bool = F
         predict_log,
         search_for,
     )
+    from rcm_kin.identification.figures import prediction_figure
     from rcm_kin.identification.identify import base_model
     from rcm_kin.identification.log_catalog import catalog
-    from rcm_kin.plotting import prediction_figure
 
     params = load_drive_parameters()
     friction = params.drive_train.get(joint)
