@@ -1,7 +1,6 @@
 """Fixed margins that cost nothing to draw and still hold their labels: a figure's y tick labels
-read from their text (not laid out) to widen its margins where they would not fit, and titles
-pinned where matplotlib would place them anyway (its title placement lays the tick labels out
-once more). Plain matplotlib objects in, nothing imported: used by :func:`rcm_kin.plotting.save_figure`."""
+read from their text (not laid out) to widen its margins where they would not fit. Plain
+matplotlib objects in, nothing imported: used by :func:`rcm_kin.plotting.save_figure`."""
 
 from __future__ import annotations
 
@@ -71,24 +70,3 @@ def _tick_labels(axis) -> list[str]:
     slack = 1e-9 * (high - low)
     locations = [x for x in axis.get_majorticklocs() if low - slack <= x <= high + slack]
     return axis.get_major_formatter().format_ticks(locations)
-
-
-def pin_titles(fig) -> None:
-    """Keep each axes' title at its default place (1.0, the pad above the axes) where matplotlib
-    would leave it there anyway, so that drawing skips its title placement (which lays out the
-    y-axis tick labels of the axes and its siblings once more: 2-7 % of a figure's drawing time):
-    a plain 2-D axes without child axes whose siblings' x ticks and labels are all at the bottom
-    and none of whose y-axes shows an offset text (``1e-5``, ``+2.1``) for the title to clear."""
-    for ax in fig.axes:
-        siblings = {ax, *ax.get_shared_x_axes().get_siblings(ax), *ax.get_shared_y_axes().get_siblings(ax)}
-        if (ax.name == "rectilinear" and ax.get_title() and not ax.child_axes
-                and all(a.xaxis.get_ticks_position() == a.xaxis.get_label_position() == "bottom"
-                        and not _offset_text(a.yaxis) for a in siblings)):
-            ax._autotitlepos = False       # matplotlib's own switch (set when a title is given a y)
-
-
-def _offset_text(axis) -> str:
-    """The offset text (``1e-5``, ``+2.1``) ``axis`` shows beside its tick labels when drawn, '' for none."""
-    formatter = axis.get_major_formatter()
-    formatter.set_locs(axis.get_majorticklocs())
-    return formatter.get_offset()

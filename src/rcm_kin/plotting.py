@@ -15,7 +15,7 @@ import numpy as np
 from rcm_kin.atomic import atomic_path
 from rcm_kin.dynamics.drive import DRIVEN
 from rcm_kin.errors import RcmKinError
-from rcm_kin.figure_layout import pin_titles, shortfall, widen
+from rcm_kin.figure_layout import shortfall, widen
 from rcm_kin.hardware import FIRMWARE_PERIOD
 from rcm_kin.thesis import FIGURES
 
@@ -69,11 +69,10 @@ def figure_format(path: str | Path) -> str:
 def save_figure(fig, path: str | Path) -> Path:
     """Write the figure as a PNG (110 dpi; zlib level 3: a sixth larger than the default 6, the same
     pixels, written in a fraction of the time). A figure on fixed margins is widened where its y
-    tick labels would not fit them, and its titles pinned (:mod:`rcm_kin.figure_layout`)."""
+    tick labels would not fit them (:mod:`rcm_kin.figure_layout`)."""
     path = Path(path)
     if fig.get_layout_engine() is None:
         widen(fig, *shortfall(fig))
-    pin_titles(fig)
     try:
         with atomic_path(path) as temporary:    # the format named: matplotlib would add a suffix to a bare name
             fig.savefig(temporary, dpi=110, format=figure_format(path), pil_kwargs={"compress_level": 3})

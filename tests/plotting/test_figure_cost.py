@@ -1,8 +1,7 @@
 """What a figure costs (issue 30): matplotlib is imported only when a figure is drawn, and then not
 pyplot (its figure managers and backend switch) but the ``Figure`` and the Agg canvas; the
 torque map's and the report's figures are drawn on fixed margins (no layout engine solving them at
-each draw) that keep every label inside the figure and apart from the others; titles are pinned
-where matplotlib would put them anyway, so pinning changes no pixel."""
+each draw) that keep every label inside the figure and apart from the others."""
 
 from __future__ import annotations
 
@@ -201,13 +200,3 @@ def panels(kind: str):
     if kind == "twin":
         ax.twiny().plot([5, 6], [0, 1])
     return fig, ax
-
-
-@pytest.mark.parametrize("kind", ["plain", "offset", "top", "twin", "wide"])
-def test_pinned_titles_change_no_pixel(kind):
-    fig, _ = panels(kind)
-    automatic = pixels(fig)
-    fig, ax = panels(kind)
-    figure_layout.pin_titles(fig)
-    assert ax._autotitlepos is (kind != "plain")          # pinned only where nothing could move the title
-    assert np.array_equal(pixels(fig), automatic)
