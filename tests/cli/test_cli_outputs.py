@@ -119,9 +119,11 @@ def test_a_stopped_monte_carlo_stops_its_workers_quietly(tmp_path, sig, status, 
     traceback, and no process of the run left behind (a small run on forked processes, a large one
     on an embedded Dask cluster)."""
     out = tmp_path / "mc"
+    # 30 s runs: a sample takes about 0.13 s of a core, so the signal lands mid-run (the default 6 s
+    # sinusoid's 64 samples end in about 1.5 s now, and a signal in the interpreter's exit kills it)
     code, stderr, seconds, group = _stopped(["robustness", "psm", "--controller", "p", "--experiment", "sine",
-                                             "--samples", str(samples), "--workers", "2", "--out", str(out)], sig,
-                                            out, after, group=sig == signal.SIGINT)
+                                             "--duration", "30", "--samples", str(samples), "--workers", "2",
+                                             "--out", str(out)], sig, out, after, group=sig == signal.SIGINT)
     assert code == status and seconds < 15, stderr[-2000:]
     assert len(_errors_only(stderr)) == 1 and _errors_only(stderr)[0].startswith("error: "), stderr[-2000:]
     assert "Traceback" not in stderr
