@@ -37,7 +37,6 @@ from rcm_kin.simulation import kernel_forms
 from rcm_kin.symbolic.compiled import COMPILE_FLAGS, cache_key, cached_library, load_library
 
 DRIVE_TRAIN, SMOOTH = 0, 1                         # CompiledPlant.kind
-FLAGS = COMPILE_FLAGS      # with -ffp-contract=off: no fused multiply-adds, as the Python side does none
 C_SOURCE = Path(__file__).with_name("kernel.c")
 INT64 = np.dtype(np.int64)
 
@@ -79,8 +78,10 @@ def source() -> str:
 
 
 def library_key(text: str, command: list[str]) -> str:
-    """The cache key of the library built from ``text`` (:func:`source`) by ``command`` with :data:`FLAGS`."""
-    return cache_key("rcm-kin closed-loop kernel", text, " ".join(command + list(FLAGS)))
+    """The cache key of the library built from ``text`` (:func:`source`) by ``command`` with the flags of
+    every compiled library (:data:`~rcm_kin.symbolic.compiled.COMPILE_FLAGS`: no fused multiply-adds,
+    as the Python side does none)."""
+    return cache_key("rcm-kin closed-loop kernel", text, " ".join(command + list(COMPILE_FLAGS)))
 
 
 _LOADED: dict[tuple[str, str], ctypes.CDLL | None] = {}      # ($CC, cache folder) -> the library, or None
@@ -96,7 +97,7 @@ def library() -> ctypes.CDLL | None:
         text = source()
 
         def build():
-            return cached_library("rcm_kin_loop", lambda command: library_key(text, command), text, FLAGS)
+            return cached_library("rcm_kin_loop", lambda command: library_key(text, command), text)
         path = build()
         found = None if path is None else load_library(path, build, "closed-loop kernel")
         if found is not None:
