@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
+import pytest
 
+from rcm_kin.errors import RcmKinError
 from rcm_kin.model import constrained, reduced
 
 TOL = 1e-9
@@ -120,3 +122,34 @@ def test_closure_error_is_the_largest_residual_in_plain_floats(psm, mtm):
         q_tree = rng.uniform(-1.0, 1.0, psm.tree.nq)
         assert constrained.closure_error(psm, q_tree) == np.max(np.abs(constrained.closure_residual(psm, q_tree)))
     assert constrained.closure_error(mtm, np.zeros(mtm.tree.nq)) == 0.0
+
+
+def test_the_reduced_models_placements_give_the_trees_closure_error(psm):
+    """Forward kinematics reads the closure error off the reduced model's placements (its passive
+    joints are mimics at the tree's joint ids): the same number as the open tree's at the linear
+    relations' configuration, bit for bit, inside and outside the limits."""
+    rng = np.random.default_rng(7)
+    data = psm.create_data()
+    for _ in range(300):
+        q = rng.uniform(psm.lower - 0.5, psm.upper + 0.5)
+        pin.forwardKinematics(psm.reduced, data.reduced, q)
+        from_reduced = constrained.placed_closure_error(psm, psm.reduced, data.reduced, data)
+        assert from_reduced == constrained.closure_error(psm, reduced.tree_configuration(psm, q), data)
+        assert from_reduced == np.max(np.abs(constrained.closure_residual(psm, reduced.tree_configuration(psm, q))))
+
+
+def test_the_position_errors_are_read_in_place(psm):
+    """``RobotData.position_errors`` are views that follow each ``calc`` (a Pinocchio that returned
+    copies would leave them stale, and the closure error silently zero)."""
+    data = psm.create_data()
+    q_tree = np.random.default_rng(3).uniform(-1.0, 1.0, psm.tree.nq)
+    pin.forwardKinematics(psm.tree, data.tree, q_tree)
+    for c, c_data, in_place in zip(psm.constraints, data.constraints, data.position_errors, strict=True):
+        c.model.calc(psm.tree, data.tree, c_data)
+        assert np.any(in_place != 0.0)
+        np.testing.assert_array_equal(in_place, c_data.constraint_position_error)
+
+
+def test_placed_closure_error_refuses_another_model(psm, mtm):
+    with pytest.raises(RcmKinError, match="`model` must be psm's open tree or reduced model"):
+        constrained.placed_closure_error(psm, mtm.reduced, mtm.reduced.createData())

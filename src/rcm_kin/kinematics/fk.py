@@ -8,8 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.model.constrained import closure_error
-from rcm_kin.model.reduced import tree_configuration
+from rcm_kin.model.constrained import placed_closure_error
 from rcm_kin.model.robot import Robot, RobotData, check_robot
 
 
@@ -50,7 +49,7 @@ def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None,
     pin.forwardKinematics(model, reduced, q if _actuated_order(robot) else robot.to_reduced(q))
     update = pin.updateFramePlacement
     placements = {name: update(model, reduced, fid).copy() for name, fid in zip(frames, frame_ids(robot, frames))}
-    return ForwardKinematics(q, placements, closure_error(robot, tree_configuration(robot, q), data))
+    return ForwardKinematics(q, placements, placed_closure_error(robot, model, reduced, data))
 
 
 @functools.lru_cache(maxsize=64)

@@ -10,6 +10,7 @@ forces ``lambda`` act on link_b at the cut point, in frame A (N).
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -76,14 +77,27 @@ def closure_residual(robot: Robot, q_tree: np.ndarray, data: RobotData | None = 
 def closure_error(robot: Robot, q_tree: np.ndarray, data: RobotData | None = None) -> float:
     """``max |closure_residual(robot, q_tree)|`` (m; 0 for a serial robot), its declared twin in
     plain floats: the same products and sums in the same order, without the arrays' per-call cost
-    on 2 or 3 values (forward kinematics' check number; tests/model/test_closure.py holds the
-    two equal)."""
+    on 2 or 3 values (tests/model/test_closure.py holds the two equal)."""
     data = robot.workspace(data)
     pin.forwardKinematics(robot.tree, data.tree, q_tree)
-    worst, tree, tree_data = 0.0, robot.tree, data.tree
-    for c, c_data, rows in zip(robot.constraints, data.constraints, _row_floats(robot), strict=True):
-        c.model.calc(tree, tree_data, c_data)
-        e0, e1, e2 = c_data.constraint_position_error.tolist()
+    return placed_closure_error(robot, robot.tree, data.tree, data)
+
+
+def placed_closure_error(robot: Robot, model: pin.Model, model_data: pin.Data, data: RobotData | None = None) -> float:
+    """:func:`closure_error` of the joint placements already in ``model_data`` (after
+    ``pin.forwardKinematics(model, model_data, ...)``), for ``model`` the open tree or the reduced
+    model: the reduced model's passive joints are mimics at the tree's own joint ids
+    (:func:`rcm_kin.model.reduced.build_reduced_model`), so its placements at actuated ``q`` are the
+    tree's at ``tree_configuration(robot, q)`` and the loops' constraint models read them unchanged
+    (forward kinematics' check number, without a second pass over the tree; tests/model/test_closure.py
+    holds it equal to the tree's)."""
+    if model is not robot.tree and model is not robot.reduced:
+        raise RcmKinError(f"`model` must be {robot.name}'s open tree or reduced model", parameter="model")
+    worst, data = 0.0, robot.workspace(data)
+    for (calc, rows), c_data, position_error in zip(_loop_checks(robot), data.constraints, data.position_errors,
+                                                     strict=True):
+        calc(model, model_data, c_data)
+        e0, e1, e2 = position_error.tolist()
         for r0, r1, r2 in rows:
             error = abs(r0 * e0 + r1 * e1 + r2 * e2)
             if not error <= worst:          # NaN taken, and kept, as NumPy's max does
@@ -92,9 +106,9 @@ def closure_error(robot: Robot, q_tree: np.ndarray, data: RobotData | None = Non
 
 
 @functools.lru_cache(maxsize=64)
-def _row_floats(robot: Robot) -> tuple[list[list[float]], ...]:
-    """Each constraint's independent rows as Python floats (built once per robot)."""
-    return tuple(c.rows.tolist() for c in robot.constraints)
+def _loop_checks(robot: Robot) -> tuple[tuple[Callable, list[list[float]]], ...]:
+    """Each constraint's ``calc`` and its independent rows as Python floats (built once per robot)."""
+    return tuple((c.model.calc, c.rows.tolist()) for c in robot.constraints)
 
 
 def constraint_jacobian(robot: Robot, q_tree: np.ndarray, data: RobotData | None = None) -> np.ndarray:

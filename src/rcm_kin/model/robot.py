@@ -14,6 +14,7 @@ threads using one robot never share scratch data.
 from __future__ import annotations
 
 import math
+import operator
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -26,6 +27,7 @@ from rcm_kin.model.description import RobotDescription
 
 LIMIT_TOLERANCE = 1e-9      # rad or m: how far outside its limits a joint value still counts as within
 
+FLOAT64 = np.dtype(np.float64)   # NumPy's one float64 dtype: :meth:`Robot.check_pose`'s identity test
 
 @dataclass(frozen=True)
 class RobotData:
@@ -35,6 +37,12 @@ class RobotData:
     tree: pin.Data
     reduced: pin.Data
     constraints: tuple              # pin.PointAnchorConstraintData, one per loop, in the robot's order
+    position_errors: tuple = field(init=False, repr=False, compare=False)
+    # each constraint's ``constraint_position_error``, read in place: Pinocchio's views of the
+    # constraint data held here, so that they update with each ``calc`` and live as long as it
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "position_errors", tuple(c.constraint_position_error for c in self.constraints))
 
 
 @dataclass(frozen=True)
@@ -178,10 +186,11 @@ class Robot:
         vector (rad, m), finite and of the right size, and within the joint limits unless
         ``allow_outside_limits`` (an explicit request to evaluate the model outside them);
         else an RcmKinError (:class:`~rcm_kin.errors.JointLimitError` for the limits) naming ``parameter``."""
-        if not allow_outside_limits and type(q) is np.ndarray and q.dtype == np.float64 and q.shape == (self.nq,):
+        if not allow_outside_limits and type(q) is np.ndarray and q.dtype is FLOAT64 and q.shape == (self.nq,):
             low, high = self.limit_bounds
-            if all(lo <= x <= hi for x, lo, hi in zip(q.tolist(), low, high)):
-                return q.copy()           # finite and within the limits (NaN fails every comparison): one pass
+            values = q.tolist()           # finite and within the limits (NaN fails every comparison): one pass
+            if all(map(operator.le, low, values)) and all(map(operator.le, values, high)):
+                return q.copy()
         q = self.check_q(q, parameter=parameter)
         return q if allow_outside_limits else self.check_limits(q, parameter=parameter)
 
