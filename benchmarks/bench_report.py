@@ -7,12 +7,16 @@
 - Per piece (``--pieces``): the report's pieces (``rcm_kin.report.report_jobs``) in the report's
   own pool on the machine's cores (``run_jobs``): each piece's wall time in its worker, which
   worker ran it, and the busiest worker's total (the critical path of the pool's schedule).
+- Each piece alone (``--alone``): in a process forked from one that imported what the report
+  imports before its pool forks (``rcm_kin.report.preload``), one after the other: its CPU seconds
+  and those of its figures' ``savefig`` (drawing and PNG), and the parent's own imports; the sum
+  over the pieces, halved, is what the pool's two workers cannot go under on 2 cores.
 - ``--against FOLDER``: the content of the last report written against a report written before
   (e.g. by an older commit): index.html and every JSON, CSV, header and MJCF byte for byte; the
   meshcat pages command by command with the scene's random object ids set aside and numbers to
   1e-9 relative; the PNG figures pixel by pixel. Exit status 1 when they differ.
 
-Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/bench_report.py --repeats 3 --pieces``.
+Run: ``OPENBLAS_NUM_THREADS=1 python benchmarks/bench_report.py --repeats 3 --pieces [--alone]``.
 """
 
 from __future__ import annotations
@@ -74,6 +78,41 @@ def pieces(out: Path) -> None:
         busy[r.worker] = busy.get(r.worker, 0.0) + r.seconds
         print(f"  {label:32s} {r.seconds:6.2f} s  worker {r.worker}")
     print("  busiest worker: {:.2f} s of pieces; all workers: {:.2f} s".format(max(busy.values()), sum(busy.values())))
+
+
+def alone(out: Path) -> None:
+    """Each piece's CPU seconds (and its figures') in a process of its own forked after the preload."""
+    from matplotlib.figure import Figure
+
+    start = time.process_time()
+    from rcm_kin.report import preload, report_jobs
+
+    jobs = report_jobs(out, None, 61)
+    preload()
+    print(f"each piece alone, CPU s (the parent's imports and preload {time.process_time() - start:.2f} s):")
+    savefig, total = Figure.savefig, np.zeros(2)
+
+    def timed_savefig(fig, *arguments, **options):
+        begin = time.process_time()
+        savefig(fig, *arguments, **options)
+        drawn[0] += time.process_time() - begin
+
+    Figure.savefig = timed_savefig
+    out.mkdir(parents=True, exist_ok=True)
+    for job in jobs:
+        drawn = [0.0]
+        read, write = os.pipe()
+        if os.fork() == 0:                  # the piece in a fresh worker, as the pool's
+            begin = time.process_time()
+            job.function(*job.arguments)
+            os.write(write, f"{time.process_time() - begin} {drawn[0]}".encode())
+            os._exit(0)
+        os.wait()
+        cpu, figures = map(float, os.read(read, 100).split())
+        total += cpu, figures
+        print(f"  {job.label:32s} {cpu:5.2f} s, figures {figures:5.2f} s")
+    Figure.savefig = savefig
+    print(f"  all pieces: {total[0]:.2f} s, figures {total[1]:.2f} s")
 
 
 def meshcat_commands(path: Path) -> list:
@@ -139,6 +178,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--pieces", action="store_true", help="also each piece's time in the report's pool")
+    parser.add_argument("--alone", action="store_true", help="also each piece's CPU alone in a forked process")
     parser.add_argument("--keep", type=Path, help="write the report here (default: a temporary folder)")
     parser.add_argument("--against", type=Path, help="compare the report's content with this report folder")
     args = parser.parse_args()
@@ -155,6 +195,8 @@ def main() -> int:
         ok = compare(out, args.against) if args.against else True
         if args.pieces:
             pieces(Path(scratch) / "pieces")
+        if args.alone:
+            alone(Path(scratch) / "alone")
     return 0 if ok else 1
 
 

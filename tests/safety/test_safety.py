@@ -151,3 +151,22 @@ def test_prebuilt_qp_refuses_other_shapes():
     from rcm_kin.safety.cbf import cbf_qp_problem, solve_cbf_qp
     with pytest.raises(RcmKinError, match="built for 3 inputs and 1 barriers"):
         solve_cbf_qp(cbf_qp_problem(3, 1, 0.1), np.zeros(2), [], 20.0)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3])
+def test_poly_eval_with_its_cache_is_the_plain_sum_bit_for_bit(n):
+    """poly_eval takes each power once on the whole grid (kept in its cache): the same floats as
+    sum(c * prod(x ** e)) term by term, whatever the exponents and the values."""
+    from rcm_kin.safety.sos import poly_eval
+
+    rng = np.random.default_rng(n)
+    grids = [rng.normal(size=(4001, n)) * 10.0 ** rng.uniform(-3, 3, size=(4001, n)), rng.normal(size=(3, n))]
+    grids += [b.grid(101) for b in (thesis_program("2").X, thesis_program("4").Xu)] if n == 2 else []
+    polys = [{tuple(int(v) for v in rng.integers(0, 7, size=n)): float(rng.normal()) for _ in range(12)}
+             for _ in range(3)]
+    for x in grids:
+        cache: dict = {}
+        for p in polys:
+            plain = sum(float(c) * np.prod(x ** np.array(e), axis=1) for e, c in p.items())
+            assert poly_eval(p, x, cache).tobytes() == plain.tobytes()
+            assert poly_eval(p, x).tobytes() == plain.tobytes()

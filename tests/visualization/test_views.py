@@ -13,7 +13,7 @@ import umsgpack
 from rcm_kin import RcmKinError
 from rcm_kin.cli import main
 from rcm_kin.visualization.drawing import robot_drawing
-from rcm_kin.visualization.views import animate, frame_path, robot_view, scalar_trail, show, write_html
+from rcm_kin.visualization.views import animate, frame_path, js_quaternions, robot_view, scalar_trail, show, write_html
 
 
 def page_commands(path):
@@ -89,3 +89,60 @@ def test_drawing_and_view_cli(tmp_path, capsys):
 
 def test_drawing_is_a_png(tmp_path, mtm):
     assert robot_drawing(mtm, [0.3, 0.2, 0.4], tmp_path / "m.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_quaternions_together_are_meshcats_bit_for_bit():
+    """js_quaternions is a declared twin of meshcat's js_quaternion (quaternion_from_matrix)."""
+    from meshcat.animation import js_quaternion
+    from meshcat.transformations import random_rotation_matrix, rotation_matrix
+
+    rng = np.random.default_rng(3)
+    matrices = [random_rotation_matrix(rng.random(3)) for _ in range(500)]
+    matrices += [np.eye(4), np.diag([1.0, -1.0, -1.0, 1.0]), np.diag([-1.0, 1.0, -1.0, 1.0]),
+                 rotation_matrix(np.pi, [0.0, 0.0, 1.0]), rotation_matrix(1e-9, [1.0, 2.0, 3.0])]
+    for m in matrices[:50]:
+        m[:3, :3] *= 1.7          # a scaled transform, as meshcat's visualizer sends for a mesh's scale
+    expected = np.array([js_quaternion(m) for m in matrices])
+    got = js_quaternions(np.array(matrices))
+    assert got.tobytes() == expected.tobytes()
+
+
+def test_animation_keyframes_are_meshcats(psm):
+    """animate writes the keyframes meshcat's own frame visualizer (animation.at_frame) writes."""
+    from meshcat.animation import Animation
+
+    Q = np.zeros((30, psm.nq))
+    Q[:, 0], Q[:, 1], Q[:, 2] = np.linspace(-0.3, 0.4, 30), np.linspace(0.2, -0.5, 30), 0.1
+    viz = robot_view(psm, frames=("rcm", "tool_tip"))
+    sent = []
+    viz.viewer.window.send = sent.append
+    animate(viz, psm, Q, 0.01, every=2)
+    reference, live = Animation(default_framerate=50.0), viz.viewer
+    for k, q in enumerate(Q[::2]):
+        with reference.at_frame(live, k) as frame:
+            viz.viewer = frame
+            show(viz, psm, q)
+    viz.viewer = live
+    animation = next(c for c in sent if type(c).__name__ == "SetAnimation").animation
+    assert animation.lower() == reference.lower() and len(animation.clips) > 5
+
+
+def test_offline_commands_packed_as_umsgpack_does(psm):
+    """OfflineWindow's pack is a declared twin of umsgpack.packb (what meshcat's server sends)."""
+    from rcm_kin.visualization.offline import OfflineWindow, pack
+
+    sent = []
+
+    class Recording(OfflineWindow):
+        def send(self, command):
+            sent.append(command.lower())
+            super().send(command)
+
+    viz = robot_view(psm, window=Recording(), frames=("tool_tip",))
+    Q = np.zeros((5, psm.nq))
+    Q[:, 0] = np.linspace(0.0, 0.2, 5)
+    animate(viz, psm, Q, 0.1)
+    scalar_trail(viz, "x", frame_path(psm, Q, "tool_tip"), np.arange(5.0))
+    kinds = {c["type"] for c in sent}
+    assert {"set_object", "set_transform", "set_property", "set_animation"} <= kinds
+    assert all(pack(c) == umsgpack.packb(c) for c in sent)

@@ -88,11 +88,13 @@ class JobResult:
 def report_jobs(out: Path, data, map_points: int) -> list[Job]:
     """The report's independent pieces, the longest first so that the pool's workers finish
     together (each worker takes the next piece when it is free). CPU seconds of each piece alone
-    in a fresh worker on this 2-core machine, its imports included (``benchmarks/bench_report.py``
-    times them in the pool): tracking 4.2 per experiment, safety's PSM teleoperation 3.4,
-    robustness 3.3, safety's linear scenarios 2.7, tuned gains 2.6, effort maps 2.6, gain schedule 1.7,
-    safety's certificates 1.7, MuJoCo 1.2, robot views 1.2, models 0.3. The pieces that need the nominal
-    gain schedule design it once per worker (:func:`rcm_kin.simulation.experiments.psm_schedule`)."""
+    in a worker forked after :func:`preload`, its own imports included (``benchmarks/bench_report.py
+    --alone``; ``--pieces`` times them in the pool; docs/performance.md): safety's linear scenarios
+    2.6-2.9, safety's certificates 1.9-2.0, tracking 1.2-1.8 per experiment, safety's PSM teleoperation
+    1.4-1.8, robustness 1.6, tuned gains 1.4, effort maps 1.2, MTM 1.0, gain schedule 0.8, MuJoCo 0.8,
+    robot views 0.7, models 0.7 (the list's order is close enough: within a few tenths of a second of
+    the best split on 2 workers). The pieces that need the nominal gain schedule design it once per
+    worker (:func:`rcm_kin.simulation.experiments.psm_schedule`)."""
     from rcm_kin.report.sections.drive_train import drive_train_section
     from rcm_kin.report.sections.gravity import gravity_section
     from rcm_kin.report.sections.measured import measured_section

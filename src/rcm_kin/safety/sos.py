@@ -69,10 +69,23 @@ def poly_diff(p: dict, i: int) -> dict:
     return out
 
 
-def poly_eval(p: dict, x: np.ndarray) -> np.ndarray:
-    """Numeric polynomial at points ``x`` (N, n)."""
+def poly_eval(p: dict, x: np.ndarray, cache: dict | None = None) -> np.ndarray:
+    """Numeric polynomial at points ``x`` (N, n): ``sum c prod(x ** e)``. ``cache``: a dict kept
+    for several polynomials evaluated at these same ``x``, each power ``x ** k`` and monomial then
+    computed once. The same floats either way: a power is taken as ``x ** e`` is, on the whole
+    (N, n) array (NumPy's kernel for a power depends on the arrays' shapes, not on the values;
+    ``tests/safety/test_sos.py`` holds the two equal), its column picked."""
     x = np.atleast_2d(x)
-    return sum(float(c) * np.prod(x ** np.array(e), axis=1) for e, c in p.items())
+    powers, monomials = ({}, {}) if cache is None else (cache.setdefault("powers", {}), cache.setdefault("terms", {}))
+
+    def monomial(e: tuple) -> np.ndarray:
+        if e not in monomials:
+            for k in set(e) - powers.keys():
+                powers[k] = x ** np.array((k,) * len(e))
+            monomials[e] = np.prod(np.column_stack([powers[k][:, j] for j, k in enumerate(e)]), axis=1)
+        return monomials[e]
+
+    return sum(float(c) * monomial(e) for e, c in p.items())
 
 
 def poly_text(p: dict, variables) -> str:
@@ -280,7 +293,8 @@ def check_by_sampling(B: dict, program: BarrierProgram, points: int = 201, tol: 
     n = len(program.variables)
     grad = [poly_diff(B, i) for i in range(n)]
     x0, xu, x = (box.grid(points) for box in (program.X0, program.Xu, program.X))
-    lie = sum((x @ program.M[i]) * poly_eval(grad[i], x) for i in range(n))
+    on_x: dict = {}          # the gradient's components share their powers and monomials
+    lie = sum((x @ program.M[i]) * poly_eval(grad[i], x, on_x) for i in range(n))
     scale = max(1e-12, max(abs(c) * float(np.prod(program.scale ** np.array(e))) for e, c in B.items()))
     b0, bu = poly_eval(B, x0).max(), poly_eval(B, xu).min()
     passed = bool(b0 <= tol * scale and bu > 0 and lie.max() <= tol * scale * np.abs(program.M).max())

@@ -74,17 +74,26 @@ def y_up(point) -> list[float]:
     return [x, z, -y]
 
 
-def geometry_points(visual: pin.GeometryModel, data: pin.GeometryData) -> np.ndarray:
-    """The corners (N, 3) m, base frame, of each visual element's own bounding box, placed."""
-    points = []
-    for obj, placement in zip(visual.geometryObjects, data.oMg):
+def geometry_points(visual: pin.GeometryModel, data: pin.GeometryData, corners: list | None = None) -> np.ndarray:
+    """The corners (N, 3) m, base frame, of each visual element's own bounding box, placed;
+    ``corners``: :func:`local_corners` of ``visual`` when already computed (an animation's frames)."""
+    placements = data.oMg
+    points = [local @ placements[k].rotation.T + placements[k].translation
+              for k, local in (local_corners(visual) if corners is None else corners)]
+    return np.vstack(points) if points else np.empty((0, 3))
+
+
+def local_corners(visual: pin.GeometryModel) -> list[tuple[int, np.ndarray]]:
+    """The corners (8, 3) m of each visual element's own bounding box in the element's frame, with
+    the element's index: those whose box is finite."""
+    corners = []
+    for k, obj in enumerate(visual.geometryObjects):
         geometry = obj.geometry
         geometry.computeLocalAABB()
         low, high = np.asarray(geometry.aabb_local.min_), np.asarray(geometry.aabb_local.max_)
-        if not (np.all(np.isfinite(low)) and np.all(np.isfinite(high))):
-            continue
-        points.append((low + _CORNERS * (high - low)) @ placement.rotation.T + placement.translation)
-    return np.vstack(points) if points else np.empty((0, 3))
+        if np.all(np.isfinite(low)) and np.all(np.isfinite(high)):
+            corners.append((k, low + _CORNERS * (high - low)))
+    return corners
 
 
 def framing(points: np.ndarray, margin: float = MARGIN) -> SideCamera:
@@ -119,9 +128,10 @@ def side_camera(robot: Robot, q, margin: float = MARGIN, package_dirs=None) -> S
     return framing(np.vstack([pose_points(robot, tree_data, visual, data, p) for p in poses]), margin)
 
 
-def view_points(viz: MeshcatVisualizer) -> np.ndarray:
-    """The points a camera frames in the view ``viz`` at the pose it shows last."""
-    points = geometry_points(viz.visual_model, viz.visual_data)
+def view_points(viz: MeshcatVisualizer, corners: list | None = None) -> np.ndarray:
+    """The points a camera frames in the view ``viz`` at the pose it shows last (``corners`` as for
+    :func:`geometry_points`)."""
+    points = geometry_points(viz.visual_model, viz.visual_data, corners)
     return points if len(points) else np.array([m.translation for m in viz.data.oMi])
 
 

@@ -7,8 +7,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import ClassVar
 
-import yourdfpy
-
 from rcm_kin.atomic import write_text
 from rcm_kin.kinematics.self_check import KinematicChecks, kinematic_checks
 from rcm_kin.model import joint_table, load_robot
@@ -34,7 +32,11 @@ class ModelsSection:
 
 
 def model_summary(name: str) -> dict:
-    """Joints with limits and the mass of every link of a bundled robot (kg), as plain data."""
+    """Joints with limits and the mass of every link of a bundled robot (kg), as plain data. (yourdfpy
+    is imported here, not with the module: it imports trimesh, 0.6-0.8 s, which the report's
+    other pieces do not need.)"""
+    import yourdfpy
+
     robot = load_robot(name)
     urdf = yourdfpy.URDF.load(str(robot.description.urdf), build_scene_graph=False, load_meshes=False)
     masses = {link.name: link.inertial.mass for link in urdf.robot.links if link.inertial is not None}
