@@ -10,6 +10,7 @@ import gc
 import os
 import pickle
 import signal
+import sys
 from typing import Callable
 
 from rcm_kin.errors import RcmKinError, recording_warnings, reissue
@@ -22,12 +23,19 @@ def cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
+def in_a_worker() -> bool:
+    """Whether this process is a multiprocessing worker (a process pool's, e.g. the report's)."""
+    started = sys.modules.get("multiprocessing")      # not imported: not one
+    return started is not None and started.parent_process() is not None
+
+
 def run_apart(forked: Callable[[], object], here: Callable[[], object], fork: bool = True,
               what: str = "the forked process") -> tuple[object, object]:
     """``forked()`` in a forked child process while this process runs ``here()``; their results
-    (``forked()``'s warnings raised here). One after the other in this process without ``fork``
-    or a second core (:func:`cores`). Fork before starting threads: the child has only the
-    calling one.
+    (``forked()``'s warnings raised here). One after the other in this process without ``fork``,
+    a second core (:func:`cores`), or in a pool's worker process (:func:`in_a_worker`: the pool
+    has the cores, and a worker it stops would leave the child behind). Fork before starting
+    threads: the child has only the calling one.
 
     The child's error is raised here once both have ended: an RcmKinError or OSError as it was,
     anything else as an RcmKinError naming it (one line, ``what`` naming the child). The child
@@ -43,7 +51,7 @@ def run_apart(forked: Callable[[], object], here: Callable[[], object], fork: bo
     collector's marks on them would copy their pages into the child."""
     gc.freeze()         # what exists now is not scanned by the collectors (nor its pages copied into the child)
     try:
-        if not fork or cores() < 2:
+        if not fork or cores() < 2 or in_a_worker():
             return forked(), here()
         return _apart(forked, here, what)
     finally:

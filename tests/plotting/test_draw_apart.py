@@ -53,6 +53,21 @@ def test_without_fork_both_run_here_one_after_the_other():
     assert result == (os.getpid(), 7) and order == ["forked", "here"]
 
 
+def _pids() -> tuple:
+    return apart.run_apart(os.getpid, os.getpid)
+
+
+@two_cores
+def test_in_a_pool_worker_both_run_in_the_worker():
+    """The report draws the torque map in its pool's workers: no child of a worker (the pool has the
+    cores; a worker the pool stops would leave it behind)."""
+    from rcm_kin.parallel import process_pool
+
+    with process_pool(1) as pool:
+        worker, (forked, here) = pool.submit(os.getpid).result(), pool.submit(_pids).result()
+    assert forked == here == worker != os.getpid()
+
+
 @pytest.mark.parametrize("fork", [True, False])
 def test_the_objects_made_before_are_frozen_while_it_runs_and_only_then(fork):
     before = gc.get_freeze_count()
