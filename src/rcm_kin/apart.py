@@ -46,16 +46,27 @@ def run_apart(forked: Callable[[], object], here: Callable[[], object], fork: bo
     finished is whole. Known limit: a file the child finishes between this process's SIGTERM
     and the child's own (microseconds) is committed, whole.
 
-    The objects that exist when it is called are frozen (:func:`gc.freeze`) until both end: a
-    full collection while figures are drawn scanned them all again (30-60 ms), and the
-    collector's marks on them would copy their pages into the child."""
-    gc.freeze()         # what exists now is not scanned by the collectors (nor its pages copied into the child)
+    Call it under :func:`paused_collector` to spare both parts the garbage collector's scans."""
+    if not fork or cores() < 2 or in_a_worker():
+        return forked(), here()
+    return _apart(forked, here, what)
+
+
+@contextlib.contextmanager
+def paused_collector():
+    """The cyclic garbage collector off while the block runs (in a child forked meanwhile too), as it
+    was after. For a bounded burst of object-making work such as importing matplotlib and drawing
+    figures: its collections scanned every object made since the start again and again (about
+    50 ms of a ``torque-map``'s imports and 60-70 ms of its figures, one full collection among
+    them), and would write to the pages of the objects a forked child shares, copying them. What
+    the block leaves as cyclic garbage is collected after it."""
+    enabled = gc.isenabled()
+    gc.disable()
     try:
-        if not fork or cores() < 2 or in_a_worker():
-            return forked(), here()
-        return _apart(forked, here, what)
+        yield
     finally:
-        gc.unfreeze()
+        if enabled:
+            gc.enable()
 
 
 def _apart(forked: Callable[[], object], here: Callable[[], object], what: str) -> tuple[object, object]:

@@ -14,7 +14,7 @@ from typing import Callable
 
 import numpy as np
 
-from rcm_kin.apart import run_apart
+from rcm_kin.apart import paused_collector, run_apart
 from rcm_kin.atomic import atomic_path
 from rcm_kin.dynamics.drive import DRIVEN
 from rcm_kin.errors import RcmKinError
@@ -48,9 +48,11 @@ def _agg() -> tuple[type, type]:
 def draw_apart(forked: Callable[[], object], here: Callable[[], object], fork: bool = True) -> tuple[object, object]:
     """Two groups of figures drawn at once, ``forked()`` in a forked process and ``here()`` in this
     one (:func:`rcm_kin.apart.run_apart`: their results, the child's errors and warnings raised
-    here): a figure is drawn in Python, one core's work. matplotlib is imported first, once for both."""
-    _agg()
-    return run_apart(forked, here, fork, "the process drawing the figures")
+    here): a figure is drawn in Python, one core's work. matplotlib is imported first, once for both;
+    the garbage collector is paused meanwhile (:func:`rcm_kin.apart.paused_collector`)."""
+    with paused_collector():
+        _agg()
+        return run_apart(forked, here, fork, "the process drawing the figures")
 
 
 def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], layout: str | None = None,

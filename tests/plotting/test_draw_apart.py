@@ -68,11 +68,22 @@ def test_in_a_pool_worker_both_run_in_the_worker():
     assert forked == here == worker != os.getpid()
 
 
-@pytest.mark.parametrize("fork", [True, False])
-def test_the_objects_made_before_are_frozen_while_it_runs_and_only_then(fork):
-    before = gc.get_freeze_count()
-    _, frozen = apart.run_apart(lambda: None, gc.get_freeze_count, fork=fork)
-    assert frozen > before and gc.get_freeze_count() == before
+@pytest.mark.parametrize("enabled", [True, False])
+def test_the_collector_is_paused_while_the_block_runs_and_only_then(enabled):
+    before = gc.isenabled()
+    (gc.enable if enabled else gc.disable)()
+    try:
+        with apart.paused_collector():
+            inside = gc.isenabled()
+        after = gc.isenabled()
+    finally:
+        (gc.enable if before else gc.disable)()
+    assert inside is False and after is enabled
+
+
+def test_draw_apart_pauses_the_collector(monkeypatch):
+    monkeypatch.setattr(figures, "run_apart", lambda forked, here, fork, what: (forked(), here()))
+    assert figures.draw_apart(gc.isenabled, lambda: 2) == (False, 2) and gc.isenabled()
 
 
 @two_cores
