@@ -39,12 +39,13 @@ def run_apart(forked: Callable[[], object], here: Callable[[], object], fork: bo
 
     The child's error is raised here once both have ended: an RcmKinError or OSError as it was,
     anything else as an RcmKinError naming it (one line, ``what`` naming the child). The child
-    takes the default action on SIGINT and SIGTERM (Ctrl-C reaches the whole process group: it
-    ends at once); when this process stops (an error, Ctrl-C, SIGTERM) it ends the child and
-    waits for it, so no process is left. A file the child was writing is left as an unfinished
-    temporary, which the output folder's claim clears (:func:`rcm_kin.atomic.claim`); one it
-    finished is whole. Known limit: a file the child finishes between this process's SIGTERM
-    and the child's own (microseconds) is committed, whole.
+    takes the default action on SIGINT and SIGTERM unless this process ignores them (Ctrl-C
+    reaches the whole process group: the child ends at once); when this process stops (an
+    error, Ctrl-C, SIGTERM) it ends the child and waits for it, so no process is left. A file the
+    child was writing is left as an unfinished temporary, which the output folder's claim clears
+    (:func:`rcm_kin.atomic.claim`); one it finished is whole. Known limit: a file the child
+    finishes between this process's SIGTERM and the child's own (microseconds) is committed,
+    whole.
 
     Call it under :func:`paused_collector` to spare both parts the garbage collector's scans."""
     if not fork or cores() < 2 or in_a_worker():
@@ -100,8 +101,9 @@ def _child(forked: Callable[[], object], read: int, write: int, what: str) -> No
     status = 1
     try:
         os.close(read)
-        signal.signal(signal.SIGINT, signal.SIG_DFL)
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            if signal.getsignal(sig) is not signal.SIG_IGN:    # ignored stays ignored, as in this process
+                signal.signal(sig, signal.SIG_DFL)
         try:
             outcome = ("value", *recording_warnings(forked))
         except Exception as exc:  # noqa: BLE001 - sent to the parent, which raises it

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import gc
 import os
+import signal
 import time
 import warnings
 
@@ -122,6 +123,20 @@ def test_any_other_error_of_the_child_is_one_line_naming_it():
 def test_a_child_that_dies_is_an_error_naming_how():
     with pytest.raises(RcmKinError, match=r"ended without its result \(stopped by SIGKILL\)"):
         apart.run_apart(lambda: os.kill(os.getpid(), 9), lambda: None)
+
+
+@two_cores
+def test_the_child_ends_on_sigint_and_sigterm_unless_they_are_ignored_here():
+    def dispositions():
+        return [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)]
+
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)       # as in a job a shell starts in the background
+    try:
+        ignored, _ = apart.run_apart(dispositions, lambda: None)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    default, _ = apart.run_apart(dispositions, lambda: None)
+    assert ignored == [signal.SIG_IGN, signal.SIG_DFL] and default == [signal.SIG_DFL, signal.SIG_DFL]
 
 
 @two_cores
