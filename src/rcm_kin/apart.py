@@ -11,6 +11,7 @@ import os
 import pickle
 import signal
 import sys
+import threading
 from typing import Callable
 
 from rcm_kin.errors import RcmKinError, recording_warnings, reissue
@@ -33,9 +34,10 @@ def run_apart(forked: Callable[[], object], here: Callable[[], object], fork: bo
               what: str = "the forked process") -> tuple[object, object]:
     """``forked()`` in a forked child process while this process runs ``here()``; their results
     (``forked()``'s warnings raised here). One after the other in this process without ``fork``,
-    a second core (:func:`cores`), or in a pool's worker process (:func:`in_a_worker`: the pool
-    has the cores, and a worker it stops would leave the child behind). Fork before starting
-    threads: the child has only the calling one.
+    a second core (:func:`cores`), in a pool's worker process (:func:`in_a_worker`: the pool has
+    the cores, and a worker it stops would leave the child behind), or while another thread runs
+    (a lock it holds at the fork, e.g. in a notebook's kernel, would stay held in the child: start
+    threads after the fork, in ``here``).
 
     The child's error is raised here once both have ended: an RcmKinError or OSError as it was,
     anything else as an RcmKinError naming it (one line, ``what`` naming the child). The child
@@ -48,7 +50,7 @@ def run_apart(forked: Callable[[], object], here: Callable[[], object], fork: bo
     whole.
 
     Call it under :func:`paused_collector` to spare both parts the garbage collector's scans."""
-    if not fork or cores() < 2 or in_a_worker():
+    if not fork or cores() < 2 or in_a_worker() or threading.active_count() > 1:
         return forked(), here()
     return _apart(forked, here, what)
 

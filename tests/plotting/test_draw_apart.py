@@ -8,6 +8,7 @@ from __future__ import annotations
 import gc
 import os
 import signal
+import threading
 import time
 import warnings
 
@@ -67,6 +68,17 @@ def test_in_a_pool_worker_both_run_in_the_worker():
     with process_pool(1) as pool:
         worker, (forked, here) = pool.submit(os.getpid).result(), pool.submit(_pids).result()
     assert forked == here == worker != os.getpid()
+
+
+def test_while_another_thread_runs_both_run_here():
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        assert apart.run_apart(os.getpid, os.getpid) == (os.getpid(), os.getpid())
+    finally:
+        stop.set()
+        other.join()
 
 
 @pytest.mark.parametrize("enabled", [True, False])
