@@ -3,15 +3,18 @@ thesis Figs 4.6/4.7 (roll effort versus roll, pitch effort versus pitch, each at
 of the other joint), tracking, stability and barrier figures of the simulations.
 
 Figures are drawn on matplotlib's ``Figure`` and Agg canvas (:func:`subplots`), never pyplot's
-managers; those of ``torque-map`` and the report on fixed margins (no layout solved when drawn)."""
+managers; those of ``torque-map`` and the report on fixed margins (no layout solved when drawn).
+:func:`draw_apart` draws two groups of figures at once, one in a forked process."""
 
 from __future__ import annotations
 
 import functools
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
+from rcm_kin.apart import paused_collector, run_apart
 from rcm_kin.atomic import atomic_path
 from rcm_kin.dynamics.drive import DRIVEN
 from rcm_kin.errors import RcmKinError
@@ -40,6 +43,16 @@ def _agg() -> tuple[type, type]:
     from matplotlib.figure import Figure
 
     return Figure, FigureCanvasAgg
+
+
+def draw_apart(forked: Callable[[], object], here: Callable[[], object], fork: bool = True) -> tuple[object, object]:
+    """Two groups of figures drawn at once, ``forked()`` in a forked process and ``here()`` in this
+    one (:func:`rcm_kin.apart.run_apart`: their results, the child's errors and warnings raised
+    here): a figure is drawn in Python, one core's work. matplotlib is imported first, once for both;
+    the garbage collector is paused meanwhile (:func:`rcm_kin.apart.paused_collector`)."""
+    with paused_collector():
+        _agg()
+        return run_apart(forked, here, fork, "the process drawing the figures")
 
 
 def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], layout: str | None = None,

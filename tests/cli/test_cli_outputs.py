@@ -111,6 +111,29 @@ def test_a_stopped_torque_map_leaves_no_file(tmp_path, sig, status):
     assert "torque_map.csv" not in left and not any(PARTIAL in name for name in left)
 
 
+@pytest.mark.parametrize("sig, status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_a_torque_map_stopped_while_its_figures_are_drawn_leaves_no_partial_file_nor_process(tmp_path, sig, status):
+    """The figures are drawn in two processes (rcm_kin.plotting.draw_apart): SIGTERM to the run, or
+    Ctrl-C to its whole process group, stops both with one line; a figure is there whole or not at all."""
+    out = tmp_path / "maps"
+    # 301 x 301: the heat maps' contours take a while; the signal lands while the figures are drawn
+    code, stderr, seconds, group = _stopped(["torque-map", "psm", "--roll=-30:30:301", "--pitch=-30:30:301", "--out",
+                                             str(out)], sig, out, 0.8, group=sig == signal.SIGINT)
+    assert code == status and seconds < 10, stderr[-2000:]
+    assert _errors_only(stderr) == ([f"error: {'terminated (SIGTERM)' if sig == signal.SIGTERM else 'interrupted'}"
+                                     + (": nothing written under a final name after the signal"
+                                        if sig == signal.SIGTERM else "")])
+    deadline = time.monotonic() + 10
+    while _processes_in_group(group) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert _processes_in_group(group) == []
+    left = sorted(p.name for p in out.iterdir()) if out.exists() else []
+    assert not any(PARTIAL in name for name in left), left
+    for name in left:
+        if name.endswith(".png"):                  # whole: PNG's end chunk is there
+            assert (out / name).read_bytes().endswith(b"IEND\xaeB`\x82"), name
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("samples, after", [(64, 1.5), (400, 6.0)], ids=["process pool", "Dask cluster"])
 @pytest.mark.parametrize("sig, status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])

@@ -13,7 +13,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from rcm_kin import figure_layout, load_robot
+from rcm_kin import apart, figure_layout, load_robot
 from rcm_kin import plotting as figures
 from rcm_kin.dynamics.drive import load_drive_parameters
 from rcm_kin.statics.holding import torque_map
@@ -88,9 +88,10 @@ def psm_maps():
 
 
 def built(monkeypatch, draw, *arguments) -> list:
-    """The figures ``draw(*arguments)`` saves, not written."""
+    """The figures ``draw(*arguments)`` saves, not written (all drawn in this process)."""
     saved = []
     monkeypatch.setattr(figures, "save_figure", lambda fig, path: saved.append(fig) or path)
+    monkeypatch.setattr(apart, "cores", lambda: 1)
     draw(*arguments)
     monkeypatch.undo()
     return saved

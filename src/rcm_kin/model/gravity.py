@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
-from tqdm import tqdm
 
 from rcm_kin.errors import RcmKinError
 from rcm_kin.model import constrained
@@ -172,6 +171,9 @@ def gravity_batch(robot: Robot, Q, offsets: dict | None = None, chunk: int = 819
     moments = offset_moments(robot, offsets or {})
     starts = range(0, len(Q), chunk)
     if progress and len(starts) > 1:
+        # imported here: tqdm imports importlib.metadata, 20-30 ms of every start of a command
+        from tqdm import tqdm
+
         starts = tqdm(starts, desc="gravity", unit="chunk")
     return np.concatenate([_gravity_chunk(robot, Q[i:i + chunk], moments) for i in starts])
 

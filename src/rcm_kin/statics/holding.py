@@ -22,7 +22,6 @@ from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
-from tqdm import tqdm
 
 from rcm_kin.atomic import atomic_open
 from rcm_kin.csv_table import write_csv_blocks
@@ -261,6 +260,9 @@ def map_gravity(robot: Robot, offsets: dict, q: np.ndarray, index: tuple[int, in
     dense = gravity.function.sparsity_out(0).is_dense()
     starts = range(0, A * B, block)
     if progress and len(starts) > 1:
+        # imported here: tqdm imports importlib.metadata, 20-30 ms of every start of a command
+        from tqdm import tqdm
+
         starts = tqdm(starts, desc="gravity", unit="block")
     for start in starts:
         stop = min(start + block, A * B)
