@@ -25,7 +25,10 @@ after the first sample).
 ``--against SRC`` runs the commands a second time with ``PYTHONPATH=SRC`` (another checkout's
 ``src``, e.g. ``git archive main src | tar -x -C /tmp/main``): before and after in one run. The
 caches (compiled functions and kernel, gain schedules) are warm: run each command once first, as the
-benchmark does.
+benchmark does. So is Python's bytecode, as after ``pip install .`` (which compiles it): the
+processes write and read it under a temporary ``PYTHONPYCACHEPREFIX``, whatever
+``PYTHONDONTWRITEBYTECODE`` says (with it set, an editable checkout compiled every imported
+module on every start: about 0.1 s of rcm-kin's start-up that an installed copy does not pay).
 
     python benchmarks/bench_startup.py [--repeats 5] [--against /tmp/main/src] [--report]
 """
@@ -44,7 +47,7 @@ import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from common import best_of  # noqa: E402
+from common import best_of, child_env  # noqa: E402
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 SIMULATE = ["simulate", "psm", "--experiment", "sine", "--controller", "scheduled", "--duration", "31", "--json"]
@@ -58,7 +61,7 @@ def fresh(args: list[str], src: str = SRC) -> float:
 def fresh_times(args: list[str], src: str = SRC) -> tuple[float, float]:
     """Wall and CPU seconds (user + system, its child processes included) of ``python args`` in a
     new process with ``src`` first on the path."""
-    env = {**os.environ, "PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1"}
+    env = child_env(src)
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     subprocess.run([sys.executable, *args], env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -164,7 +167,7 @@ def figures(against: str | None) -> None:
     print("figures, CPU s in process (first drawing, best of 3 after):")
     with tempfile.TemporaryDirectory() as out:
         for label, src in ({"this": SRC} | ({"against": against} if against else {})).items():
-            env = {**os.environ, "PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1"}
+            env = child_env(src)
             lines = subprocess.run([sys.executable, "-c", FIGURES, out], env=env, check=True, capture_output=True,
                                    text=True).stdout.splitlines()
             for line in lines:
@@ -201,8 +204,7 @@ def compiler_calls(src: str = SRC) -> None:
         log, wrapper = Path(folder) / "calls.log", Path(folder) / "cc"
         wrapper.write_text(f'#!/bin/sh\necho "$@" >> {log}\nexec cc "$@"\n')
         wrapper.chmod(0o755)
-        env = {**os.environ, "PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1", "CC": str(wrapper),
-               "XDG_CACHE_HOME": folder}
+        env = child_env(src, CC=str(wrapper), XDG_CACHE_HOME=folder)
         counts = []
         for samples, seed in ((8, 0), (32, 1)):
             subprocess.run([sys.executable, *ROBUSTNESS, str(samples), "--seed", str(seed)], env=env, check=True,

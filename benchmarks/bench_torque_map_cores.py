@@ -24,6 +24,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from common import child_env
+
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 TIMED = """
 import json, os, sys, time
@@ -52,7 +54,7 @@ sys.exit(code)
 
 def cpu_of(args: list[str], src: str) -> float:
     """CPU seconds (user + system, children included) of ``python args`` with ``src`` first on the path."""
-    env = {**os.environ, "PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1"}
+    env = child_env(src)
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run([sys.executable, *args], env=env, check=True, stdout=subprocess.DEVNULL)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
