@@ -14,6 +14,7 @@ import warnings
 
 import numpy as np
 import pytest
+from tqdm import tqdm
 
 from rcm_kin import apart
 from rcm_kin import plotting as figures
@@ -24,6 +25,20 @@ from rcm_kin.parallel import machine_workers
 from rcm_kin.statics import maps
 
 two_cores = pytest.mark.skipif(apart.cores() < 2, reason="one core: run_apart runs both parts here")
+
+
+@pytest.fixture(autouse=True)
+def only_this_thread():
+    """run_apart forks only while no other thread runs. An earlier test's progress bar leaves tqdm's
+    monitor thread behind (it lives as long as the process, as in a user's session with a bar
+    shown); it is stopped here by tqdm's own ``exit``. Any other thread fails the test's
+    precondition by name rather than silently running both parts here."""
+    monitor = getattr(tqdm, "monitor", None)
+    if monitor is not None:
+        monitor.exit()
+        tqdm.monitor = None
+    others = [t.name for t in threading.enumerate() if t is not threading.main_thread()]
+    assert not others, f"threads other than this test's: {others}"
 
 
 def test_cores_is_the_twin_of_machine_workers():
