@@ -87,13 +87,9 @@ class AxisPlant:
 
 
 @numba.njit(cache=True)
-def _lookup(x, grid, table):
-    """Linear interpolation on a uniform grid, held at the end values outside it (as np.interp)."""
-    x = min(max(x, grid[0]), grid[-1])
-    step = grid[1] - grid[0]
-    i = min(max(int((x - grid[0]) / step), 0), grid.size - 2)
-    w = (x - grid[i]) / step
-    return table[i] * (1.0 - w) + table[i + 1] * w
+def _same(a, b):
+    """Whether the floats ``a`` and ``b`` have the same bits (NaN never): equal, zeros of the same sign."""
+    return a == b and np.copysign(1.0, a) == np.copysign(1.0, b)
 
 
 @numba.njit(cache=True)
@@ -105,7 +101,9 @@ def _implicit_friction(v, J, h, F, B, static, coulomb, stribeck):
         if abs(p) <= h * static:
             return 0.0
         return (p - h * coulomb * np.sign(p)) / (J + h * B)
-    f = coulomb + (static - coulomb) * np.exp(-(v / stribeck) ** 2)
+    # without stiction (static at the Coulomb level, as the motor side always is) the Stribeck term is 0 * exp(...) =
+    # +0.0 for every finite speed: added as that constant, the exponential is not computed (the same bits)
+    f = coulomb + ((static - coulomb) * np.exp(-(v / stribeck) ** 2) if static != coulomb else 0.0)
     new = (p - h * f * np.sign(v)) / (J + h * B)
     return 0.0 if new * v <= 0.0 else new
 
@@ -162,12 +160,20 @@ def _substep(state, th, n, unit, pwm, gravity, inertia, ku, kemf, Jm, h):
         spring += k_each * (q - state[4 + i])
     if kc > 0.0:   # two masses, the cable implicit in both velocities: block Gauss-Seidel sweeps
         stretch, coupling = kc * (state[0] - q), dc + h * kc
+        # a sweep's w depends on v alone and its v on w alone: once either repeats (the same bits), every
+        # further sweep repeats too, so the sweeps stop there with the values all COUPLING_SWEEPS give
         w, v = state[1], state[3]
-        for _ in range(COUPLING_SWEEPS):
-            w = _implicit_friction(state[1], Jm, h, ku * pwm - stretch + coupling * v, kemf + bm + coupling,
-                                   Fcm, Fcm, 1.0)
-            v = _implicit_friction(state[3], inertia + Jx, h, stretch + coupling * w - gravity - spring,
-                                   b + coupling + h * kp, Fs, Fc, vs)
+        for sweep in range(COUPLING_SWEEPS):
+            w_new = _implicit_friction(state[1], Jm, h, ku * pwm - stretch + coupling * v, kemf + bm + coupling,
+                                       Fcm, Fcm, 1.0)
+            if sweep > 0 and _same(w_new, w):
+                break
+            w = w_new
+            v_new = _implicit_friction(state[3], inertia + Jx, h, stretch + coupling * w - gravity - spring,
+                                       b + coupling + h * kp, Fs, Fc, vs)
+            if sweep > 0 and _same(v_new, v):
+                break
+            v = v_new
         state[1], state[3] = w, v
         state[0] += h * w
     else:          # rigid drive: one body, frictions added
@@ -183,19 +189,40 @@ def _substep(state, th, n, unit, pwm, gravity, inertia, ku, kemf, Jm, h):
 
 
 @numba.njit(cache=True)
+def _lookup2(x, grid, table1, table2):
+    """Linear interpolation of two tables on a uniform grid at ``x``, held at the end values outside it (as
+    np.interp)."""
+    x = min(max(x, grid[0]), grid[-1])
+    step = grid[1] - grid[0]
+    i = min(max(int((x - grid[0]) / step), 0), grid.size - 2)
+    w = (x - grid[i]) / step
+    return table1[i] * (1.0 - w) + table1[i + 1] * w, table2[i] * (1.0 - w) + table2[i + 1] * w
+
+
+@numba.njit(cache=True)
 def _step_period(state, th, n, unit, pwm, grid, gtab, Mtab, ku, kemf, Jm, h, substeps):
     for _ in range(substeps):
-        _substep(state, th, n, unit, pwm, _lookup(state[2], grid, gtab), _lookup(state[2], grid, Mtab), ku, kemf, Jm, h)
+        gravity, inertia = _lookup2(state[2], grid, gtab, Mtab)
+        _substep(state, th, n, unit, pwm, gravity, inertia, ku, kemf, Jm, h)
 
 
 @numba.njit(cache=True, nogil=True)   # nogil: prediction bands simulate their members on threads
 def _run(th, ku, kemf, Jm, grid, gtab, Mtab, pwm, state, period, substeps):
-    """Measured angle (rad) after each held PWM sample of ``pwm``, from ``state`` (in place)."""
+    """Measured angle (rad) after each held PWM sample of ``pwm``, from ``state`` (in place). A period is
+    a function of the state and its PWM alone: one that left the state as it was (the same bits: the axis
+    at rest, held by its friction) leaves it so again under the same PWM, and is not computed again."""
     out = np.empty(pwm.size)
     h = period / substeps
     n, unit = elements_of(th)
+    before = np.empty(state.size)
+    still = False
     for k in range(pwm.size):
-        _step_period(state, th, n, unit, pwm[k], grid, gtab, Mtab, ku, kemf, Jm, h, substeps)
+        if not (still and _same(pwm[k], pwm[k - 1])):
+            before[:] = state
+            _step_period(state, th, n, unit, pwm[k], grid, gtab, Mtab, ku, kemf, Jm, h, substeps)
+            still = True
+            for i in range(state.size):
+                still = still and _same(state[i], before[i])
         out[k] = state[0]
     return out
 
@@ -273,6 +300,12 @@ def virgin_offsets(force: float, k_each: float, slip: float, n: int) -> np.ndarr
     return np.array([sign * min(d, unit * (i + 1) / k_each) for i in range(n)])
 
 
+def rest_angle(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float) -> float:
+    """The link angle (rad) of :func:`rest_state`: behind the measured ``angle`` by the cable's stretch
+    under ``pwm``."""
+    return angle - (plant.input_gain * pwm / friction.cable_stiffness if friction.cable_stiffness > 0 else 0.0)
+
+
 def rest_state(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float,
                preload: float = 0.0) -> np.ndarray:
     """``[theta, w, q, v, z_1 .. z_MAX_ELEMENTS]`` (:data:`STATE_SIZE`) at rest with the measured angle
@@ -286,8 +319,7 @@ def rest_state(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: floa
         raise RcmKinError(f"the presliding preload is a fraction of the slip force in [-1, 1], got {preload!r}",
                           parameter="preload")
     torque = plant.input_gain * pwm
-    stretch = torque / friction.cable_stiffness if friction.cable_stiffness > 0 else 0.0
-    q = angle - stretch
+    q = rest_angle(friction, plant, angle, pwm)
     state = np.full(STATE_SIZE, q)
     state[0], state[1], state[3] = angle, 0.0, 0.0
     if friction.presliding_stiffness > 0:

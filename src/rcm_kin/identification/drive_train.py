@@ -19,6 +19,7 @@ from the spread over the leave-one-out folds.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +32,7 @@ from rcm_kin.dynamics.stick_slip import (
     TERMS,
     AxisFriction,
     AxisPlant,
+    rest_angle,
     rest_state,
     simulate_axis,
     simulate_axis_closed,
@@ -69,6 +71,11 @@ class AxisLog:
     pose: np.ndarray         # (3,) driven joints (rad, rad, m) where the record starts
     law: RecordedLaw | None = None          # closed loop: the controller in the loop
     excitation: np.ndarray | None = None    # (n,) counts added to the law's PWM (closed loop)
+
+    @cached_property
+    def spread(self) -> float:
+        """The norm of the measured angle about its mean (rad): what :func:`residuals` divides by."""
+        return np.linalg.norm(self.measured - self.measured.mean())
 
     @property
     def time(self) -> np.ndarray:
@@ -170,7 +177,7 @@ def predict_log(friction: AxisFriction, plant: AxisPlant, log: AxisLog, preload:
         return simulate_axis_closed(friction, plant, log.law.vector(), log.excitation, log.period, state, count)[0]
     plant, state = at_rest(friction, plant, log.measured[0], log.pwm[0], preload=preload)
     out = simulate_axis(friction, plant, log.pwm[:-1], log.period, state)
-    return np.r_[log.measured[0], out]
+    return np.concatenate(([log.measured[0]], out))
 
 
 def at_rest(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float,
@@ -185,8 +192,7 @@ def at_rest(friction: AxisFriction, plant: AxisPlant, angle: float, pwm: float,
     if not -1.0 <= preload <= 1.0:
         raise RcmKinError(f"the presliding preload is a fraction of the slip force in [-1, 1], got {preload!r}",
                           parameter="preload")
-    state = rest_state(friction, plant, angle, pwm)
-    unbalanced = plant.input_gain * pwm - np.interp(state[2], plant.grid, plant.gravity)
+    unbalanced = plant.input_gain * pwm - np.interp(rest_angle(friction, plant, angle, pwm), plant.grid, plant.gravity)
     carried = preload * friction.presliding_force if friction.presliding_stiffness > 0 else 0.0
     plant = replace(plant, gravity=plant.gravity + (unbalanced - carried))
     return plant, rest_state(friction, plant, angle, pwm)
@@ -235,7 +241,7 @@ def residuals(friction: AxisFriction, plants: list[AxisPlant], logs: list[AxisLo
     out = []
     for plant, log in zip(plants, logs):
         predicted = predict_log(friction, plant, log)
-        out.append((predicted - log.measured) / np.linalg.norm(log.measured - log.measured.mean()))
+        out.append((predicted - log.measured) / log.spread)
     return np.concatenate(out)
 
 
