@@ -44,16 +44,20 @@ def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None,
     :meth:`Robot.check_pose`)."""
     q = check_robot(robot).check_pose(q, allow_outside_limits=allow_outside_limits)
     data = robot.workspace(data)
-    frames = robot.description.frames if frames is None else tuple(frames)
+    named, actuated_order = _plan(robot, frames if frames is None else tuple(frames))
     model, reduced = robot.reduced, data.reduced
-    pin.forwardKinematics(model, reduced, q if _actuated_order(robot) else robot.to_reduced(q))
+    pin.forwardKinematics(model, reduced, q if actuated_order else robot.to_reduced(q))
     update = pin.updateFramePlacement
-    placements = {name: update(model, reduced, fid).copy() for name, fid in zip(frames, frame_ids(robot, frames))}
+    placements = {name: update(model, reduced, fid).copy() for name, fid in named}
     return ForwardKinematics(q, placements, placed_closure_error(robot, model, reduced, data))
 
 
-@functools.lru_cache(maxsize=64)
-def _actuated_order(robot: Robot) -> bool:
-    """Whether the reduced model's configuration is the actuated vector itself (the PSM's, the
-    MTM's): forward kinematics then skips :meth:`Robot.to_reduced`'s copy."""
-    return robot.reduced.nq == robot.nq and bool(np.array_equal(robot.reduced_q_actuated, np.arange(robot.nq)))
+@functools.lru_cache(maxsize=256)
+def _plan(robot: Robot, frames: tuple[str, ...] | None) -> tuple[tuple[tuple[str, int], ...], bool]:
+    """What forward kinematics looks up once per robot and frame tuple (``None``: the sidecar's
+    ``frames``): each frame's name with its reduced-model id (:func:`frame_ids`), and whether the
+    reduced model's configuration is the actuated vector itself (the PSM's, the MTM's), which then
+    skips :meth:`Robot.to_reduced`'s copy."""
+    frames = robot.description.frames if frames is None else frames
+    actuated_order = robot.reduced.nq == robot.nq and bool(np.array_equal(robot.reduced_q_actuated, np.arange(robot.nq)))
+    return tuple(zip(frames, frame_ids(robot, frames))), actuated_order

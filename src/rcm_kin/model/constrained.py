@@ -93,9 +93,8 @@ def placed_closure_error(robot: Robot, model: pin.Model, model_data: pin.Data, d
     holds it equal to the tree's)."""
     if model is not robot.tree and model is not robot.reduced:
         raise RcmKinError(f"`model` must be {robot.name}'s open tree or reduced model", parameter="model")
-    worst, data = 0.0, robot.workspace(data)
-    for (calc, rows), c_data, position_error in zip(_loop_checks(robot), data.constraints, data.position_errors,
-                                                     strict=True):
+    worst, data = 0.0, robot.workspace(data)       # its constraints are the robot's, one each
+    for (calc, rows), c_data, position_error in zip(_loop_checks(robot), data.constraints, data.position_errors):
         calc(model, model_data, c_data)
         e0, e1, e2 = position_error.tolist()
         for r0, r1, r2 in rows:
