@@ -59,5 +59,6 @@ def _plan(robot: Robot, frames: tuple[str, ...] | None) -> tuple[tuple[tuple[str
     reduced model's configuration is the actuated vector itself (the PSM's, the MTM's), which then
     skips :meth:`Robot.to_reduced`'s copy."""
     frames = robot.description.frames if frames is None else frames
-    actuated_order = robot.reduced.nq == robot.nq and bool(np.array_equal(robot.reduced_q_actuated, np.arange(robot.nq)))
+    in_order = bool(np.array_equal(robot.reduced_q_actuated, np.arange(robot.nq)))
+    actuated_order = robot.reduced.nq == robot.nq and in_order
     return tuple(zip(frames, frame_ids(robot, frames))), actuated_order
