@@ -490,7 +490,8 @@ def test_fuzz_outputs_on_a_hostile_file_system(command, hazard, tmp_path):
 @pytest.mark.slow
 def test_fuzz_sigterm_at_any_moment_leaves_a_whole_file_or_none(tmp_path):
     """SIGTERM at random moments of a torque map: status 143 with no table, or 0 with the whole table
-    (or, during the imports before the command begins, the signal's default: nothing written, nothing said)."""
+    (or, during the imports before the command begins or the interpreter's exit after it ended, the
+    signal's default: nothing written and nothing said, or the whole table)."""
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src"), "OPENBLAS_NUM_THREADS": "1"}
 
     @settings(max_examples=6, derandomize=True, deadline=None, database=None, print_blob=False,
@@ -505,8 +506,8 @@ def test_fuzz_sigterm_at_any_moment_leaves_a_whole_file_or_none(tmp_path):
         child.send_signal(signal.SIGTERM)
         _, err = child.communicate(timeout=60)
         table = out / "torque_map.csv"
-        if child.returncode == -signal.SIGTERM:       # still importing: killed before the command began
-            assert not out.exists() and not err
+        if child.returncode == -signal.SIGTERM:       # killed before the command began, or after it ended
+            assert (not out.exists() and not err) or len(table.read_text().splitlines()) == 301 * 301 + 1
         elif child.returncode == 143:
             assert err.strip().splitlines()[-1].startswith("error: terminated (SIGTERM)")
             assert not table.exists() or len(table.read_text().splitlines()) == 301 * 301 + 1
