@@ -96,8 +96,9 @@ class Robot:
 
     def workspace(self, data: RobotData | None = None) -> RobotData:
         """``data`` if it is a workspace of this robot (else an error), or this thread's own."""
-        if data is None or data is getattr(self._threads, "data", None):     # this thread's own: checked
-            return self.scratch
+        own = getattr(self._threads, "data", None)
+        if data is None or data is own:           # this thread's own: checked
+            return self.scratch if own is None else own
         if not isinstance(data, RobotData):
             raise RcmKinError(f"data must be this robot's RobotData (robot.create_data()), got {type(data).__name__}",
                               parameter="data")
@@ -187,7 +188,9 @@ class Robot:
         ``allow_outside_limits`` (an explicit request to evaluate the model outside them);
         else an RcmKinError (:class:`~rcm_kin.errors.JointLimitError` for the limits) naming ``parameter``."""
         if not allow_outside_limits and type(q) is np.ndarray and q.dtype is FLOAT64 and q.shape == (self.nq,):
-            low, high = self.limit_bounds
+            made = self._bounds
+            low, high = made[2:] if made is not None and made[0] is self.lower and made[1] is self.upper \
+                else self.limit_bounds        # (the property's own test, without its call)
             values = q.tolist()           # finite and within the limits (NaN fails every comparison): one pass
             if all(map(operator.le, low, values)) and all(map(operator.le, values, high)):
                 return q.copy()
