@@ -21,12 +21,10 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import resource  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
 import tempfile  # noqa: E402
-import time  # noqa: E402
 from pathlib import Path  # noqa: E402
+
+from common import fresh_run  # noqa: E402
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"     # ../shared/data, as the tests
@@ -36,16 +34,11 @@ RATIO, WALL = 3.5, 120.0       # issue 30: --cv at most 3.5x identify, under 2 m
 def run(src: str, logs: list[str], cv: bool) -> tuple[float, float, bytes, bytes]:
     """Wall and CPU seconds (the pool's processes included) of ``identify psm LOGS [--cv] --json`` with
     ``src`` first on the path, in a new empty folder; its standard output and written file."""
-    env = {**os.environ, "PYTHONPATH": src, "OPENBLAS_NUM_THREADS": "1"}
-    args = [sys.executable, "-m", "rcm_kin.cli", "identify", "psm", *logs, "--out", "identified.toml", "--json"]
+    args = ["-m", "rcm_kin.cli", "identify", "psm", *logs, "--out", "identified.toml", "--json"]
     with tempfile.TemporaryDirectory() as folder:
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        start = time.perf_counter()
-        done = subprocess.run(args + (["--cv"] if cv else []), env=env, cwd=folder, check=True, capture_output=True)
-        wall = time.perf_counter() - start
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        wall, cpu, stdout = fresh_run(args + (["--cv"] if cv else []), src, cwd=folder)
         written = (Path(folder) / "identified.toml").read_bytes()
-    return wall, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime, done.stdout, written
+    return wall, cpu, stdout, written
 
 
 def chosen_logs(data: Path, count: int) -> list[str]:

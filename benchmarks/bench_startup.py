@@ -26,7 +26,7 @@ after the first sample).
 ``src``, e.g. ``git archive main src | tar -x -C /tmp/main``): before and after in one run. The
 caches (compiled functions and kernel, gain schedules) are warm: run each command once first, as the
 benchmark does. So is Python's bytecode, as after ``pip install .`` (which compiles it): the
-processes write and read it under a temporary ``PYTHONPYCACHEPREFIX``, whatever
+processes write and read it under ``PYTHONPYCACHEPREFIX`` (``common.PYCACHE``), whatever
 ``PYTHONDONTWRITEBYTECODE`` says (with it set, an editable checkout compiled every imported
 module on every start: about 0.1 s of rcm-kin's start-up that an installed copy does not pay).
 
@@ -40,14 +40,12 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import resource  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
-import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from common import best_of, child_env  # noqa: E402
+from common import best_of, child_env, fresh_run  # noqa: E402
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 SIMULATE = ["simulate", "psm", "--experiment", "sine", "--controller", "scheduled", "--duration", "31", "--json"]
@@ -61,13 +59,7 @@ def fresh(args: list[str], src: str = SRC) -> float:
 def fresh_times(args: list[str], src: str = SRC) -> tuple[float, float]:
     """Wall and CPU seconds (user + system, its child processes included) of ``python args`` in a
     new process with ``src`` first on the path."""
-    env = child_env(src)
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    start = time.perf_counter()
-    subprocess.run([sys.executable, *args], env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    wall = time.perf_counter() - start
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return wall, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    return fresh_run(args, src)[:2]
 
 
 def commands(out: str, report: bool = False) -> dict[str, list[str]]:

@@ -18,13 +18,10 @@ import argparse
 import itertools
 import json
 import os
-import resource
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
-from common import child_env
+from common import fresh_run
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 TIMED = """
@@ -54,11 +51,7 @@ sys.exit(code)
 
 def cpu_of(args: list[str], src: str) -> float:
     """CPU seconds (user + system, children included) of ``python args`` with ``src`` first on the path."""
-    env = child_env(src)
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    subprocess.run([sys.executable, *args], env=env, check=True, stdout=subprocess.DEVNULL)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    return fresh_run(args, src)[1]
 
 
 def critical_path(src: str, folder: str, k: int) -> tuple[float, float, dict]:

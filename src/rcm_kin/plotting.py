@@ -35,7 +35,7 @@ FIXED = {"heatmaps": {"left": 0.06, "right": 0.97, "bottom": 0.11, "top": 0.87, 
 
 
 @functools.cache
-def _agg() -> tuple[type, type]:
+def figure_classes() -> tuple[type, type]:
     """matplotlib's ``Figure`` and the Agg canvas (files only, no display), imported when the first
     figure is drawn, not when rcm_kin is: a command that draws nothing never pays for it. Not
     pyplot: its figure managers and backend switching are not needed to write files."""
@@ -51,7 +51,7 @@ def draw_apart(forked: Callable[[], object], here: Callable[[], object], fork: b
     here): a figure is drawn in Python, one core's work. matplotlib is imported first, once for both;
     the garbage collector is paused meanwhile (:func:`rcm_kin.apart.paused_collector`)."""
     with paused_collector():
-        _agg()
+        figure_classes()
         return run_apart(forked, here, fork, "the process drawing the figures")
 
 
@@ -62,7 +62,7 @@ def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], la
     ``margins``: the grid's (left, right, bottom, top) distances from the figure's edges in
     inches, fixed: no layout is solved when the figure is drawn (a constrained layout measures
     every label, about half the drawing time of a figure)."""
-    figure, canvas = _agg()
+    figure, canvas = figure_classes()
     fig = figure(figsize=figsize, layout=layout)
     canvas(fig)
     if margins is not None:
@@ -258,7 +258,7 @@ def tracking_figure(result, path: str | Path, title: str = "") -> Path:
     tracking error (bottom), with the PWM sent on a second axis. One figure per process, drawn
     again with each result's data (:func:`_tracking_canvas`): its axes keep their tick objects and
     its canvas its text layouts, about 40 % of a drawing; the same pixels as a new figure's."""
-    fig, axes, twins, lines = _tracking_canvas()
+    fig, axes, twins, lines, grid_made = _tracking_canvas()
     for i, axis in enumerate(("roll", "pitch")):
         reference, measured, error, pwm = lines[i]
         reference.set_data(result.time, result.reference[:, i])
@@ -276,22 +276,20 @@ def tracking_figure(result, path: str | Path, title: str = "") -> Path:
     handles = [h for ax in (axes[0, 0], axes[1, 0], twins[-1]) for h in ax.get_legend_handles_labels()[0]]
     fig.legend(handles=handles, loc="outside upper center", ncol=len(handles), fontsize=8)   # off the curves
     grid = axes[0, 0].get_subplotspec().get_gridspec()
-    grid.update(**TRACKING_GRID)         # the fixed margins again: save_figure widens them where labels need it
+    grid.update(**grid_made)             # the fixed margins again: save_figure widens them where labels need it
     fig.subplots_adjust()
     return save_figure(fig, path)
 
 
-TRACKING_GRID: dict = {}      # the tracking figure's grid parameters as made (left, right, wspace)
-
-
 @functools.cache
 def _tracking_canvas() -> tuple:
-    """The tracking figure's figure, axes (2 x 2), the bottom axes' PWM twins and each column's
-    lines (reference, measured, error, PWM), without data: :func:`tracking_figure` sets them."""
+    """The tracking figure's figure, axes (2 x 2), the bottom axes' PWM twins, each column's lines
+    (reference, measured, error, PWM), without data (:func:`tracking_figure` sets them), and its
+    grid's parameters as made (left, right, wspace)."""
     fig, axes = subplots(2, 2, figsize=(11, 6.4), sharex=True, margins=(0.83, 0.72, 0.48, 0.55),
                          gridspec_kw={"wspace": 0.4, "hspace": 0.05})
     grid = axes[0, 0].get_subplotspec().get_gridspec()
-    TRACKING_GRID.update(left=grid.left, right=grid.right, wspace=grid.wspace)
+    grid_made = {"left": grid.left, "right": grid.right, "wspace": grid.wspace}
     twins, lines = [], []
     for i, axis in enumerate(("roll", "pitch")):
         top, bottom = axes[0, i], axes[1, i]
@@ -307,7 +305,7 @@ def _tracking_canvas() -> tuple:
             ax.grid(alpha=0.3)
         twins.append(pwm_axes)
         lines.append((reference, measured, error, pwm))
-    return fig, axes, tuple(twins), tuple(lines)
+    return fig, axes, tuple(twins), tuple(lines), grid_made
 
 
 def error_comparison_figure(results: list, path: str | Path, title: str = "") -> Path:

@@ -21,7 +21,7 @@ as input (``k_u = 1``, no drive terms). The model, on CasADi symbols:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
 import casadi as ca
@@ -165,7 +165,7 @@ def driven_dynamics(robot: Robot, params: DriveParameters | None = None, q_fixed
         robot=robot.name)
 
 
-TERM_NAMES = ("input_gain", "damping", "coulomb", "coulomb_velocity", "reflected_inertia")   # DriveConstants'
+TERM_NAMES = tuple(f.name for f in fields(DriveConstants))   # the drive's constants, in their order
 
 
 def model_functions(robot: Robot, joints: tuple[str, ...], q_fixed: np.ndarray, terms: tuple, moments: dict,

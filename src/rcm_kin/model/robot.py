@@ -74,12 +74,14 @@ class Robot:
     upper: np.ndarray
     massless_links: tuple[str, ...] = ()   # moving links whose rigid body has no <inertial> in the URDF
     _threads: threading.local = field(default_factory=threading.local, init=False, repr=False)  # per thread: RobotData
-    _bounds: tuple | None = field(default=None, init=False, repr=False)      # limit_bounds, and what it is of
+    _bounds: tuple | None = field(default=None, init=False, repr=False)      # limit_bounds, made when first read
 
-    def __post_init__(self):
-        self.lower, self.upper = (np.array(limits, dtype=float) for limits in (self.lower, self.upper))
-        for limits in (self.lower, self.upper):     # own read-only copies: limit_bounds reads them once
-            limits.setflags(write=False)
+    def __setattr__(self, name: str, value) -> None:
+        if name in ("lower", "upper"):      # own read-only copies, whenever set: limit_bounds reads them once
+            value = np.array(value, dtype=float)
+            value.setflags(write=False)
+            object.__setattr__(self, "_bounds", None)
+        object.__setattr__(self, name, value)
 
     def create_data(self) -> RobotData:
         """New scratch workspaces for the caller alone (Pinocchio's ``model.createData()``)."""
@@ -188,9 +190,7 @@ class Robot:
         ``allow_outside_limits`` (an explicit request to evaluate the model outside them);
         else an RcmKinError (:class:`~rcm_kin.errors.JointLimitError` for the limits) naming ``parameter``."""
         if not allow_outside_limits and type(q) is np.ndarray and q.dtype is FLOAT64 and q.shape == (self.nq,):
-            made = self._bounds
-            low, high = made[2:] if made is not None and made[0] is self.lower and made[1] is self.upper \
-                else self.limit_bounds        # (the property's own test, without its call)
+            low, high = self.limit_bounds
             values = q.tolist()           # finite and within the limits (NaN fails every comparison): one pass
             if all(map(operator.le, low, values)) and all(map(operator.le, values, high)):
                 return q.copy()
@@ -201,12 +201,10 @@ class Robot:
     def limit_bounds(self) -> tuple[list[float], list[float]]:
         """The joint limits widened by :data:`LIMIT_TOLERANCE` as Python floats, as
         :func:`check_within_limits` compares them: the one-pass check of :meth:`check_pose` (made
-        again when ``lower`` or ``upper`` is replaced)."""
-        made = self._bounds
-        if made is None or made[0] is not self.lower or made[1] is not self.upper:
-            made = self._bounds = (self.lower, self.upper, (self.lower - LIMIT_TOLERANCE).tolist(),
-                                   (self.upper + LIMIT_TOLERANCE).tolist())
-        return made[2], made[3]
+        again when ``lower`` or ``upper`` is set)."""
+        if self._bounds is None:
+            self._bounds = ((self.lower - LIMIT_TOLERANCE).tolist(), (self.upper + LIMIT_TOLERANCE).tolist())
+        return self._bounds
 
 
 def check_robot(robot, parameter: str = "robot") -> Robot:

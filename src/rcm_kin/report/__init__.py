@@ -153,14 +153,17 @@ def run_jobs(jobs: list[Job], workers: int, progress: bool = False) -> dict[str,
 
 # imported before the fork, once, by the modules that more than one worker imports (each worker
 # imported them again: matplotlib alone is about 0.5 s of CPU a worker); the others stay in theirs
-PRELOAD = ("matplotlib.figure", "matplotlib.backends.backend_agg", "rcm_kin.visualization.views", "scipy.interpolate",
-           "rcm_kin.simulation.experiments")
+PRELOAD = ("rcm_kin.visualization.views", "scipy.interpolate", "rcm_kin.simulation.experiments")
 
 
 def preload() -> None:
-    """Import :data:`PRELOAD` (matplotlib's figure and Agg canvas among them) in this process, before the pool forks."""
+    """Import :data:`PRELOAD` and matplotlib's figure and Agg canvas
+    (:func:`rcm_kin.plotting.figure_classes`) in this process, before the pool forks."""
     import importlib
 
+    from rcm_kin.plotting import figure_classes
+
+    figure_classes()
     for name in PRELOAD:
         importlib.import_module(name)
 

@@ -146,7 +146,8 @@ def _plant(kind, addresses, work, parameters, friction, input_gain, damping, ref
     if known is not None and known[1][0] == kind and all(a is b for a, b in zip(known[0], arrays)):
         return known[1]
     needed = 1 if kind == SMOOTH else 2
-    if not np.all(addresses[:needed] != 0) or work.ndim != 2 or work.shape[1] != 4 or friction.ndim != 2:
+    shaped = work.ndim == 2 and work.shape[1] == 4 and friction.ndim == 2
+    if len(addresses) < needed or not np.all(addresses[:needed] != 0) or not shaped:
         raise RcmKinError("the kernel's plant needs its functions' addresses and work sizes (k, 4) and friction "
                           "(3, n)", parameter="addresses")
     made = [int(kind), _address(addresses, "addresses", INT64), _address(work, "work", INT64), work.shape[0],
