@@ -224,3 +224,31 @@ def test_a_figure_failing_in_the_child_is_the_commands_one_line_error(tmp_path, 
     assert err == "error: the process drawing the figures failed: LinAlgError: singular matrix\n"
     left = sorted(p.name for p in out.iterdir())
     assert "torque_map.png" not in left and not any(PARTIAL in name for name in left)
+
+
+@two_cores
+def test_torque_maps_three_figures_are_drawn_in_three_processes(tmp_path, monkeypatch):
+    pids = tmp_path / "pids"
+    pids.mkdir()
+    for name in ("effort_heatmaps", "thesis_trend_curves", "insertion_curves"):
+        def drawn(*args, _draw=getattr(maps, name), _name=name, **kwargs):
+            (pids / _name).write_text(str(os.getpid()))
+            return _draw(*args, **kwargs)
+        monkeypatch.setattr(maps, name, drawn)
+    small_map(tmp_path / "maps", monkeypatch, 2)
+    drawn_by = {p.name: int(p.read_text()) for p in pids.iterdir()}
+    assert len(drawn_by) == 3 and len(set(drawn_by.values())) == 3
+    assert drawn_by["insertion_curves"] == os.getpid()
+
+
+@two_cores
+def test_the_trend_figure_failing_in_the_second_child_is_the_commands_one_line_error(tmp_path, monkeypatch, capsys):
+    def broken(gmap, path, *args, **kwargs):
+        raise ValueError("no trend")
+
+    monkeypatch.setattr(maps, "thesis_trend_curves", broken)
+    out = tmp_path / "maps"
+    assert main(["torque-map", "psm", "--roll=-20:20:9", "--pitch=-20:20:7", "--out", str(out)]) == 2
+    assert capsys.readouterr().err == "error: the process drawing the figures failed: ValueError: no trend\n"
+    left = sorted(p.name for p in out.iterdir())
+    assert "trend_curves.png" not in left and not any(PARTIAL in name for name in left)

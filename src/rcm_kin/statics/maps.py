@@ -340,8 +340,8 @@ def write_gravity_maps(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg
     range at the poses ``sweep_roll_deg`` x ``sweep_pitch_deg`` (at roll = pitch = 0 the shaft
     hangs through both axes and nothing depends on the insertion), in folder ``out``: their
     tables torque_map.csv and insertion_map.csv (``table`` "npz": .npz, see :func:`write_npz`)
-    and, with ``figures``, torque_map.png, trend_curves.png, insertion_map.png (the first two drawn in
-    a forked process on two cores: :func:`rcm_kin.plotting.draw_apart`). ``band``: a level in
+    and, with ``figures``, torque_map.png, trend_curves.png, insertion_map.png (on two cores the first two drawn
+    in two forked processes: :func:`rcm_kin.plotting.draw_apart`). ``band``: a level in
     (0, 1), the tables gain the holding band's columns (:func:`with_band`)."""
     if table not in TABLE_WRITERS:
         raise RcmKinError(f"table format '{table}': use one of {', '.join(TABLE_WRITERS)}")
@@ -373,6 +373,7 @@ def write_gravity_maps(robot: Robot, drive: DriveParameters, roll_deg, pitch_deg
             drawn = insertion_curves(sweep, out / "insertion_map.png")
             return tables.result(), drawn
 
-    # on two cores the heat maps and trend curves (0.4 s of CPU, against 0.25 s here) are drawn in a forked process
+    # on two cores the heat maps and the trend curves (about 0.2 s of CPU each) are drawn in two forked processes
+    # while this one draws the insertion curves: three processes share the two cores more evenly than two
     heat_png, (trends_png, (written, insertion)) = draw_apart(heat, lambda: draw_apart(trends, tables_and_insertion))
     return gmap, [written[0], heat_png, trends_png, written[1], insertion]
