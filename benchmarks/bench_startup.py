@@ -18,7 +18,8 @@ target within 2x).
 
 ``--robustness``: ``rcm-kin robustness psm --controller p --controller scheduled --experiment sine``
 with 8 and 32 samples from fresh processes; a sample's cost is the difference over 24, against the
-in-process simulation of the same controllers and experiment (target: at most 3x); then the
+in-process simulation of the same controllers and experiment (target: at most 3x); the first and
+second sample timed inside fresh processes (what a worker pays first: its models); then the
 compiler runs of 8 samples on an empty cache and of 32 more drawn from another seed (target: none
 after the first sample).
 
@@ -188,6 +189,36 @@ def robustness(repeats: int, against: str | None) -> None:
               f"({simulation:.3f} s)")
 
 
+FIRST_SAMPLE = ["-c", """
+import time
+from rcm_kin.dynamics.drive import load_drive_parameters
+from rcm_kin.model import load_robot
+from rcm_kin.robustness.sampling import sample_seeds, uncertain_parameters
+from rcm_kin.robustness.task import Study, run_batch
+params = load_drive_parameters()
+load_robot("psm")
+study = Study(params, uncertain_parameters(params), ("p", "scheduled"), "sine")
+seeds = list(enumerate(sample_seeds(0, 2)))
+start = time.perf_counter(); run_batch(study, seeds[:1]); middle = time.perf_counter(); run_batch(study, seeds[1:])
+print(middle - start, time.perf_counter() - middle)
+"""]
+
+
+def first_samples(rounds: int, against: str | None) -> None:
+    """In process, in fresh processes as a forked worker starts: the first robustness sample (its
+    plant family and parametric model built, compiled libraries loaded) and the second, interleaved
+    rounds, best and median."""
+    sources = {"this": SRC} | ({"against": against} if against else {})
+    times = {label: [] for label in sources}
+    for _ in range(rounds):
+        for label, src in sources.items():
+            times[label].append([float(x) for x in fresh_run(FIRST_SAMPLE, src)[2].split()])
+    for label, pairs in times.items():
+        first, second = sorted(p[0] for p in pairs), sorted(p[1] for p in pairs)
+        print(f"robustness in process ({label}): first sample {first[0]:.3f} s best, {first[len(first) // 2]:.3f} s "
+              f"median; second {second[0]:.3f} s, {second[len(second) // 2]:.3f} s ({rounds} fresh processes)")
+
+
 def compiler_calls(src: str = SRC) -> None:
     """Compiler runs of ``robustness`` on an empty cache (8 samples, seed 0), then of 32 samples
     drawn from another seed on that cache: with the plant family and the shared model
@@ -222,6 +253,7 @@ def main() -> None:
     in_process()
     if args.robustness:
         robustness(max(1, args.repeats // 2), args.against)
+        first_samples(max(5, args.repeats), args.against)
         compiler_calls()
 
 

@@ -12,8 +12,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from rcm_kin.dynamics import parametric
+from rcm_kin.dynamics.parametric import shared_model
 from rcm_kin.errors import RcmKinError
+from rcm_kin.model import load_robot
 from rcm_kin.robustness.sampling import draw, sample_seeds, uncertain_parameters, with_values
+from rcm_kin.robustness.task import sample_model, sample_plant
 from rcm_kin.simulation.compiled_plant import CompiledPlant
 from rcm_kin.simulation.experiments import psm_plant
 from rcm_kin.simulation.plant_family import family_of, plant_family
@@ -67,6 +71,37 @@ def test_a_second_set_runs_without_the_compiler(params, monkeypatch):
     run(plant, steps=20)
     assert calls == []
     assert family_of(second, PERIOD) is family_of(first, PERIOD)
+
+
+def counted_builds(monkeypatch) -> list:
+    """Empty model and family caches, and the list that each parametric model's build appends to
+    (its symbolic functions, :func:`~rcm_kin.dynamics.state_space.model_functions` with ``p``)."""
+    monkeypatch.setattr("rcm_kin.dynamics.parametric._SHARED", {})
+    monkeypatch.setattr("rcm_kin.simulation.plant_family._FAMILIES", {})
+    builds, real = [], parametric.model_functions
+    monkeypatch.setattr(parametric, "model_functions", lambda *a, **k: builds.append(a[1]) or real(*a, **k))
+    return builds
+
+
+def test_a_robustness_sample_builds_one_model_per_structure(params, monkeypatch):
+    """A worker's sample takes its plant (the family's model, drive trains: no Coulomb) and its
+    margins' model (no Coulomb, gravity and Jacobians compiled): one parametric model built for both,
+    and none for the next set of the structure."""
+    builds = counted_builds(monkeypatch)
+    first, second = drawn(params, seed=3)
+    for one in (first, second):
+        sample_plant(one, PERIOD)
+        sample_model(one)
+    assert len(builds) == 1
+    assert family_of(first, PERIOD).model is shared_model(load_robot("psm"), first, coulomb=False)
+
+
+def test_a_smooth_family_shares_the_model_with_coulomb(params, monkeypatch):
+    builds = counted_builds(monkeypatch)
+    family = plant_family(smooth(params), PERIOD)
+    assert shared_model(load_robot("psm"), smooth(params)) is family.model
+    shared_model(load_robot("psm"), smooth(params), compile_names=("gravity",))
+    assert len(builds) == 1
 
 
 def test_a_set_of_the_other_kind_is_refused(params):

@@ -134,11 +134,14 @@ def shared_model(robot: Robot, params: DriveParameters, coulomb: bool = True,
                  compile_names: tuple[str, ...] = ()) -> ParametricDynamics:
     """:func:`parametric_dynamics` of ``params``' structure (:func:`structure_key`) with the
     functions ``compile_names`` compiled, built once per process and structure: a robustness run's
-    samples, a tuning run's draws."""
-    key = (structure_key(robot, params), bool(coulomb), tuple(compile_names))
+    samples (their plant family and their margins' model), a tuning run's draws. A compiled
+    variant is the model of ``compile_names=()`` with those functions compiled, never a second build."""
+    base = (structure_key(robot, params), bool(coulomb))
+    if base + ((),) not in _SHARED:
+        _SHARED[base + ((),)] = parametric_dynamics(robot, params, coulomb=coulomb)
+    key = base + (tuple(compile_names),)
     if key not in _SHARED:
-        model = parametric_dynamics(robot, params, coulomb=coulomb)
-        _SHARED[key] = model.compiled(*compile_names) if compile_names else model
+        _SHARED[key] = _SHARED[base + ((),)].compiled(*compile_names)
     return _SHARED[key]
 
 

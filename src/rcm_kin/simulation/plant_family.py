@@ -5,7 +5,9 @@ form compiles C for every set. A :class:`PlantFamily` builds the plant's functio
 parametric ones (:mod:`rcm_kin.dynamics.parametric`: the drive's constants and first-moment
 offsets as a last input ``p``) and compiles them once; ``plant(params)`` is then the plant of any
 set of the same structure, its kernel form passing the set's ``p``
-(:attr:`~rcm_kin.simulation.compiled_plant.CompiledPlant.parameters`). The plant is the one
+(:attr:`~rcm_kin.simulation.compiled_plant.CompiledPlant.parameters`). The parametric model is
+:func:`~rcm_kin.dynamics.parametric.shared_model`'s: a robustness sample's plant and its margins'
+model are one model, built once per process. The plant is the one
 :func:`~rcm_kin.simulation.experiments.psm_plant` builds, bit for bit: the identified drive trains
 when the set has them, else the smooth model's period map (tests/simulation/test_plant_family.py).
 """
@@ -16,7 +18,7 @@ from dataclasses import dataclass
 
 from rcm_kin.dynamics.axis_friction import substep_count
 from rcm_kin.dynamics.drive import DriveParameters
-from rcm_kin.dynamics.parametric import ParametricDynamics, parametric_dynamics, structure_key
+from rcm_kin.dynamics.parametric import ParametricDynamics, shared_model, structure_key
 from rcm_kin.errors import RcmKinError, as_number
 from rcm_kin.model import load_robot
 from rcm_kin.simulation.compiled_plant import CFunction, CompiledPlant, c_function
@@ -70,11 +72,11 @@ def plant_family(params: DriveParameters, period: float, substeps: int = 4) -> P
     structure_key(psm, params)                          # drive parameters, or a one-line error
     period = as_number(period, "period", "s", 0.0, MAX_PERIOD, low_open=True)
     if params.drive_train:
-        model = parametric_dynamics(psm, rigid_body_drive(params), coulomb=False)
+        model = shared_model(psm, rigid_body_drive(params), coulomb=False)
         mass_matrix, bias = c_function(model.mass_matrix), c_function(model.bias)
         functions = None if mass_matrix is None or bias is None else (mass_matrix, bias)
         return PlantFamily(model, period, True, functions)
-    model = parametric_dynamics(psm, params)
+    model = shared_model(psm, params)
     smooth_map = period_map(model.forward, period, substeps)
     fn = c_function(smooth_map)
     return PlantFamily(model, period, False, None if fn is None else (fn,), smooth_map)
