@@ -44,15 +44,17 @@ def plain_calls(robot, q):
     return frames_only, with_closure
 
 
-def fk_ratios(psm, q, rounds: int = 15) -> None:
+def fk_ratios(psm, q, rounds: int = 150) -> None:
     """The three timed in interleaved rounds (best of ``rounds`` each), so that the machine's load
-    falls on all alike."""
+    falls on all alike; short rounds (200 calls, about 1 ms), so that the best of them is a round
+    the scheduler did not interrupt, as often on a loaded machine (15 rounds of 2000 calls before:
+    the same calls in all)."""
     frames_only, with_closure = plain_calls(psm, q)
     cases = {"fk": lambda: forward_kinematics(psm, q), "plain": frames_only, "closure": with_closure}
     best = dict.fromkeys(cases, float("inf"))
     for _ in range(rounds):
         for name, fn in cases.items():
-            best[name] = min(best[name], per_call(fn, 2000, 1))
+            best[name] = min(best[name], per_call(fn, 200, 1))
     fk, plain, closure = best["fk"], best["plain"], best["closure"]
     print(f"forward_kinematics(psm) {fk * 1e6:.2f} us: {fk / plain:.2f}x the plain FK of its 3 frames "
           f"({plain * 1e6:.2f} us), {fk / closure:.2f}x with the closure residual ({closure * 1e6:.2f} us)")

@@ -153,3 +153,20 @@ def test_the_position_errors_are_read_in_place(psm):
 def test_placed_closure_error_refuses_another_model(psm, mtm):
     with pytest.raises(RcmKinError, match="`model` must be psm's open tree or reduced model"):
         constrained.placed_closure_error(psm, mtm.reduced, mtm.reduced.createData())
+
+
+def test_a_workspace_kept_loop_terms_follow_the_robot_it_serves(psm):
+    """A workspace keeps its constraints' terms for the closure error (``RobotData.loop_terms``)
+    only while the same robot's checks ask: one workspace used in turn by the PSM and by a copy
+    whose loop rows are doubled gives each robot the error a fresh workspace gives it."""
+    import dataclasses
+
+    doubled = dataclasses.replace(psm, constraints=[dataclasses.replace(c, rows=2.0 * c.rows) for c in psm.constraints])
+    shared = psm.create_data()
+    q_tree = np.random.default_rng(5).uniform(-1.0, 1.0, psm.tree.nq)
+    alone = constrained.closure_error(psm, q_tree, psm.create_data())
+    assert alone > 0.0
+    for _ in range(2):
+        assert constrained.closure_error(psm, q_tree, shared) == alone
+        assert constrained.closure_error(doubled, q_tree, shared) == constrained.closure_error(
+            doubled, q_tree, doubled.create_data()) == 2.0 * alone

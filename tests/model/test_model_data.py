@@ -3,6 +3,7 @@ threads (or callers with their own workspaces) share scratch data."""
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import shutil
 import threading
@@ -137,3 +138,25 @@ def test_check_pose_one_pass_agrees_with_the_checks(psm):
     assert np.array_equal(psm.check_pose(q), psm.check_limits(q))
     with pytest.raises(ValueError):
         psm.lower[0] = 0.0
+
+
+def test_check_pose_reads_limits_and_size_set_after_its_first_check(psm):
+    """The bounds and the pose's size that check_pose keeps are made again when ``lower``,
+    ``upper`` or ``description`` is set (a copy of the bundled robot, not the cached one)."""
+    robot = dataclasses.replace(psm)
+    inside = (psm.lower + psm.upper) / 2
+    assert np.array_equal(robot.check_pose(inside), inside)              # the bounds made here
+    robot.upper = np.where(np.arange(7) == 1, inside[1] - 0.1, psm.upper)
+    with pytest.raises(JointLimitError, match="outside the joint limits: pitch"):
+        robot.check_pose(inside)
+    robot.upper = psm.upper
+    robot.lower = np.where(np.arange(7) == 2, inside[2] + 0.01, psm.lower)
+    with pytest.raises(JointLimitError, match="outside the joint limits: insertion"):
+        robot.check_pose(inside)
+    robot.lower = psm.lower
+    assert np.array_equal(robot.check_pose(inside), inside)
+    robot.description = dataclasses.replace(psm.description, actuated=psm.description.actuated[:6])
+    assert np.array_equal(robot.check_pose(inside[:6]), inside[:6])
+    with pytest.raises(RcmKinError, match="takes 6 joint values"):
+        robot.check_pose(inside)
+    assert np.array_equal(psm.check_pose(inside), inside)                # the bundled robot unchanged

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from rcm_kin.model.constrained import placed_closure_error
+from rcm_kin.model.constrained import loop_checks, loops_error
 from rcm_kin.model.robot import Robot, RobotData, check_robot
 
 
@@ -42,23 +42,32 @@ def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None,
     ``data``: the caller's workspace (:meth:`Robot.create_data`); default this thread's own;
     ``allow_outside_limits``: evaluate a pose outside the joint limits (refused by default,
     :meth:`Robot.check_pose`)."""
-    q = check_robot(robot).check_pose(q, allow_outside_limits=allow_outside_limits)
+    if not isinstance(robot, Robot):
+        check_robot(robot)                      # its error, naming `robot`
+    q = robot.check_pose(q, allow_outside_limits=allow_outside_limits)
     data = robot.workspace(data)
-    named, actuated_order = _plan(robot, frames if frames is None else tuple(frames))
+    named, actuated_order, checks = _plan(robot, frames if frames is None else tuple(frames))
     model, reduced = robot.reduced, data.reduced
     pin.forwardKinematics(model, reduced, q if actuated_order else robot.to_reduced(q))
     update = pin.updateFramePlacement
     placements = {name: update(model, reduced, fid).copy() for name, fid in named}
-    return ForwardKinematics(q, placements, placed_closure_error(robot, model, reduced, data))
+    # loops_error: placed_closure_error without its checks of robot, data and model, done above
+    result = _new(ForwardKinematics)            # ForwardKinematics(...) without its frozen __init__'s three calls
+    fields = result.__dict__
+    fields["q"], fields["frames"], fields["closure_residual"] = q, placements, loops_error(checks, model, reduced, data)
+    return result
+
+
+_new = object.__new__
 
 
 @functools.lru_cache(maxsize=256)
-def _plan(robot: Robot, frames: tuple[str, ...] | None) -> tuple[tuple[tuple[str, int], ...], bool]:
+def _plan(robot: Robot, frames: tuple[str, ...] | None) -> tuple[tuple[tuple[str, int], ...], bool, tuple]:
     """What forward kinematics looks up once per robot and frame tuple (``None``: the sidecar's
-    ``frames``): each frame's name with its reduced-model id (:func:`frame_ids`), and whether the
+    ``frames``): each frame's name with its reduced-model id (:func:`frame_ids`), whether the
     reduced model's configuration is the actuated vector itself (the PSM's, the MTM's), which then
-    skips :meth:`Robot.to_reduced`'s copy."""
+    skips :meth:`Robot.to_reduced`'s copy, and the robot's :func:`loop_checks`."""
     frames = robot.description.frames if frames is None else frames
     in_order = bool(np.array_equal(robot.reduced_q_actuated, np.arange(robot.nq)))
     actuated_order = robot.reduced.nq == robot.nq and in_order
-    return tuple(zip(frames, frame_ids(robot, frames))), actuated_order
+    return tuple(zip(frames, frame_ids(robot, frames))), actuated_order, loop_checks(robot)

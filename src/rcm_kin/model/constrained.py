@@ -93,8 +93,18 @@ def placed_closure_error(robot: Robot, model: pin.Model, model_data: pin.Data, d
     holds it equal to the tree's)."""
     if model is not robot.tree and model is not robot.reduced:
         raise RcmKinError(f"`model` must be {robot.name}'s open tree or reduced model", parameter="model")
-    worst, data = 0.0, robot.workspace(data)       # its constraints are the robot's, one each
-    for (calc, rows), c_data, position_error in zip(_loop_checks(robot), data.constraints, data.position_errors):
+    return loops_error(loop_checks(robot), model, model_data, robot.workspace(data))
+
+
+def loops_error(checks: tuple, model: pin.Model, model_data: pin.Data, data: RobotData) -> float:
+    """The body of :func:`placed_closure_error`, for a caller that has checked its arguments:
+    ``checks`` = :func:`loop_checks` of the robot whose checked workspace ``data`` is
+    (:meth:`Robot.workspace`) and whose open tree or reduced model ``model`` is."""
+    kept = data.loop_terms                           # the workspace's constraints are the robot's, one each
+    if kept is None or kept[0] is not checks:
+        kept = data.keep_loop_terms(checks)
+    worst = 0.0
+    for calc, rows, c_data, position_error in kept[1]:
         calc(model, model_data, c_data)
         e0, e1, e2 = position_error.tolist()
         for r0, r1, r2 in rows:
@@ -105,7 +115,7 @@ def placed_closure_error(robot: Robot, model: pin.Model, model_data: pin.Data, d
 
 
 @functools.lru_cache(maxsize=64)
-def _loop_checks(robot: Robot) -> tuple[tuple[Callable, list[list[float]]], ...]:
+def loop_checks(robot: Robot) -> tuple[tuple[Callable, list[list[float]]], ...]:
     """Each constraint's ``calc`` and its independent rows as Python floats (built once per robot)."""
     return tuple((c.model.calc, c.rows.tolist()) for c in robot.constraints)
 

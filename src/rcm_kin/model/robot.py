@@ -14,10 +14,10 @@ threads using one robot never share scratch data.
 from __future__ import annotations
 
 import math
-import operator
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from operator import le
 
 import numpy as np
 import pinocchio as pin
@@ -41,8 +41,22 @@ class RobotData:
     # each constraint's ``constraint_position_error``, read in place: Pinocchio's views of the
     # constraint data held here, so that they update with each ``calc`` and live as long as it
 
+    loop_terms: tuple | None = field(default=None, init=False, repr=False, compare=False)
+    # ``(checks, terms)`` that :meth:`keep_loop_terms` made last
+
     def __post_init__(self) -> None:
         object.__setattr__(self, "position_errors", tuple(c.constraint_position_error for c in self.constraints))
+
+    def keep_loop_terms(self, checks: tuple) -> tuple:
+        """``(checks, terms)``, kept as :attr:`loop_terms`: each of ``checks`` (a robot's
+        :func:`~rcm_kin.model.constrained.loop_checks`, one ``(calc, rows)`` per constraint) with this
+        workspace's data and position error of its constraint, ``(calc, rows, c_data, position_error)``,
+        for the closure error's loops to read while ``checks`` stays the same object (held here, so
+        its identity cannot pass to another)."""
+        terms = tuple((calc, rows, c_data, error)
+                      for (calc, rows), c_data, error in zip(checks, self.constraints, self.position_errors))
+        object.__setattr__(self, "loop_terms", (checks, terms))
+        return checks, terms
 
 
 @dataclass(frozen=True)
@@ -74,12 +88,13 @@ class Robot:
     upper: np.ndarray
     massless_links: tuple[str, ...] = ()   # moving links whose rigid body has no <inertial> in the URDF
     _threads: threading.local = field(default_factory=threading.local, init=False, repr=False)  # per thread: RobotData
-    _bounds: tuple | None = field(default=None, init=False, repr=False)      # limit_bounds, made when first read
+    _bounds: tuple | None = field(default=None, init=False, repr=False)  # _pose_bounds, made when read
 
     def __setattr__(self, name: str, value) -> None:
         if name in ("lower", "upper"):      # own read-only copies, whenever set: limit_bounds reads them once
             value = np.array(value, dtype=float)
             value.setflags(write=False)
+        if name in ("lower", "upper", "description"):   # what _pose_bounds reads
             object.__setattr__(self, "_bounds", None)
         object.__setattr__(self, name, value)
 
@@ -189,11 +204,12 @@ class Robot:
         vector (rad, m), finite and of the right size, and within the joint limits unless
         ``allow_outside_limits`` (an explicit request to evaluate the model outside them);
         else an RcmKinError (:class:`~rcm_kin.errors.JointLimitError` for the limits) naming ``parameter``."""
-        if not allow_outside_limits and type(q) is np.ndarray and q.dtype is FLOAT64 and q.shape == (self.nq,):
-            low, high = self.limit_bounds
-            values = q.tolist()           # finite and within the limits (NaN fails every comparison): one pass
-            if all(map(operator.le, low, values)) and all(map(operator.le, values, high)):
-                return q.copy()
+        if not allow_outside_limits and type(q) is np.ndarray and q.dtype is FLOAT64:
+            shape, low, high = self._bounds or self._pose_bounds()
+            if q.shape == shape:
+                values = q.tolist()       # finite and within the limits (NaN fails every comparison): one pass
+                if all(map(le, low, values)) and all(map(le, values, high)):
+                    return q.copy()
         q = self.check_q(q, parameter=parameter)
         return q if allow_outside_limits else self.check_limits(q, parameter=parameter)
 
@@ -202,8 +218,13 @@ class Robot:
         """The joint limits widened by :data:`LIMIT_TOLERANCE` as Python floats, as
         :func:`check_within_limits` compares them: the one-pass check of :meth:`check_pose` (made
         again when ``lower`` or ``upper`` is set)."""
-        if self._bounds is None:
-            self._bounds = ((self.lower - LIMIT_TOLERANCE).tolist(), (self.upper + LIMIT_TOLERANCE).tolist())
+        _, low, high = self._bounds or self._pose_bounds()
+        return low, high
+
+    def _pose_bounds(self) -> tuple[tuple[int], list[float], list[float]]:
+        """The shape of a pose and :attr:`limit_bounds`, kept until ``lower``, ``upper`` or
+        ``description`` is set."""
+        self._bounds = ((self.nq,), (self.lower - LIMIT_TOLERANCE).tolist(), (self.upper + LIMIT_TOLERANCE).tolist())
         return self._bounds
 
 
