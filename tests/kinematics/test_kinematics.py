@@ -228,17 +228,3 @@ def test_an_unknown_frame_is_an_error_every_time(psm):
             forward_kinematics(psm, np.zeros(7), ("tool_tip", "nowhere"))
 
 
-def test_forward_kinematics_result_is_the_frozen_dataclass_with_all_its_fields(psm):
-    """The result is made without the frozen dataclass's ``__init__``: every field set, none more,
-    still frozen, and its repr what the constructor gives for the same values."""
-    import dataclasses
-
-    from rcm_kin.kinematics.fk import ForwardKinematics
-
-    fk = forward_kinematics(psm, np.array([0.2, -0.3, 0.1, 0.4, 0.3, -0.2, 0.5]))
-    assert type(fk) is ForwardKinematics
-    assert list(vars(fk)) == [f.name for f in dataclasses.fields(ForwardKinematics)]
-    assert repr(fk) == repr(ForwardKinematics(fk.q, fk.frames, fk.closure_residual))
-    assert isinstance(fk.closure_residual, float) and 0.0 <= fk.closure_residual < 1e-9
-    with pytest.raises(dataclasses.FrozenInstanceError):
-        fk.q = None

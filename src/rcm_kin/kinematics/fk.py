@@ -52,13 +52,7 @@ def forward_kinematics(robot: Robot, q, frames: tuple[str, ...] | None = None,
     update = pin.updateFramePlacement
     placements = {name: update(model, reduced, fid).copy() for name, fid in named}
     # loops_error: placed_closure_error without its checks of robot, data and model, done above
-    result = _new(ForwardKinematics)            # ForwardKinematics(...) without its frozen __init__'s three calls
-    fields = result.__dict__
-    fields["q"], fields["frames"], fields["closure_residual"] = q, placements, loops_error(checks, model, reduced, data)
-    return result
-
-
-_new = object.__new__
+    return ForwardKinematics(q, placements, loops_error(checks, model, reduced, data))
 
 
 @functools.lru_cache(maxsize=256)
