@@ -141,6 +141,18 @@ def test_mtm_wrist_center_ik_round_trip(mtm, u):
     assert np.all(result.q >= mtm.lower - 1e-12) and np.all(result.q <= mtm.upper + 1e-12)
 
 
+def test_mtm_wrist_center_ik_next_to_a_singularity(mtm):
+    """j1 and j2 at 1 % of their range from the lower limits: the Jacobian's smallest singular value
+    is 4e-6 m/rad, where the fixed damping stalled at about 1e-9 m (found by Hypothesis); the
+    adaptive damping from the closest attempt reaches the tolerance."""
+    q = np.zeros(7)
+    q[:3] = within(mtm, np.array([0.0, 0.0, 0.18062670564077934, 0, 0, 0, 0]), IK_MARGIN)[:3]
+    target = frame_placement(mtm, q, "wrist_center").translation
+    result = solve_ik(mtm, "wrist_center", target, joints=("j1", "j2", "j3"))
+    assert np.linalg.norm(frame_placement(mtm, result.q, "wrist_center").translation - target) < 1e-10
+    assert np.all(result.q >= mtm.lower) and np.all(result.q <= mtm.upper)
+
+
 def test_unreachable_targets_are_errors_not_clamped(psm, mtm):
     with pytest.raises(RcmKinError, match="out of reach: it needs pitch"):
         # 40 deg of pitch at 80 mm: outside the +-30 deg limit

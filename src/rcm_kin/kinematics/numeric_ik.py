@@ -67,36 +67,59 @@ def solve_ik(robot: Robot, frame: str, position, rotation: np.ndarray | None = N
         starts.append(start)
 
     best = (np.inf, None)
-    rows = slice(None) if rotation is not None else slice(0, 3)
+    steps = (fid, position, rotation, cols, red_cols, lower, upper, tol, max_iter, max_step)
     for start in starts:
         q = start.copy()
         q[cols] = np.clip(q[cols], lower, upper)
-        e, _ = _pose_error(robot, q, fid, position, rotation)
-        for it in range(1, max_iter + 1):
-            if np.linalg.norm(e) < tol:
-                return _result(robot, q, fid, position, rotation, it)
-            J = pin.computeFrameJacobian(robot.reduced, robot.reduced_data, robot.to_reduced(q), fid,
-                                         pin.LOCAL_WORLD_ALIGNED)[rows][:, red_cols]
-            dq = _limited_step(J, e, q[cols], lower, upper, damping)
-            dq *= min(1.0, max_step / max(np.max(np.abs(dq)), 1e-300))
-            # backtracking: accept the first step length that lowers the error
-            for alpha in 0.5 ** np.arange(12):
-                trial = q.copy()
-                trial[cols] = np.clip(q[cols] + alpha * dq, lower, upper)
-                e_trial, _ = _pose_error(robot, trial, fid, position, rotation)
-                if np.linalg.norm(e_trial) < np.linalg.norm(e):
-                    break
-            else:
-                break  # stuck at a limit or a local minimum: try the next start
-            q, e = trial, e_trial
+        q, e, it, reached = _descend(robot, q, steps, damping)
+        if reached:
+            return _result(robot, q, fid, position, rotation, it)
         if np.linalg.norm(e) < best[0]:
             best = (np.linalg.norm(e), q.copy())
-    _, q = best
-    reached = frame_reached(robot, q, fid)
+    # a fixed damping stalls next to a singularity (it damps away the step along the weak direction):
+    # from the closest attempt, a damping that is the error's norm, and vanishes with it (Sugihara 2011)
+    closest, q = best
+    if q is not None:
+        q, e, it, reached = _descend(robot, q, steps, None)
+        if reached:
+            return _result(robot, q, fid, position, rotation, it)
+        q = best[1] if not np.linalg.norm(e) < closest else q
+    near = frame_reached(robot, q if q is not None else starts[0], fid)
     raise RcmKinError(f"no configuration within the joint limits puts {frame} at "
                       f"({', '.join(f'{x:.4f}' for x in position)}) m"
                       + (" with that orientation" if rotation is not None else "")
-                      + f"; the closest reached {np.linalg.norm(reached - position) * 1e3:.2f} mm away")
+                      + f"; the closest reached {np.linalg.norm(near - position) * 1e3:.2f} mm away")
+
+
+def _descend(robot: Robot, q: np.ndarray, steps: tuple,
+             damping: float | None) -> tuple[np.ndarray, np.ndarray, int, bool]:
+    """Damped least-squares steps from ``q`` (``steps``: the frame id, target, joint columns, limits,
+    tolerance, iterations and step cap of :func:`solve_ik`) until the error is below tolerance, a
+    step no longer lowers it, or the iterations run out: ``(q, error, iteration, reached)``.
+    ``damping`` None: the error's norm at each step (Levenberg-Marquardt's adaptive damping)."""
+    fid, position, rotation, cols, red_cols, lower, upper, tol, max_iter, max_step = steps
+    rows = slice(None) if rotation is not None else slice(0, 3)
+    e, _ = _pose_error(robot, q, fid, position, rotation)
+    it = 0
+    for it in range(1, max_iter + 1):
+        if np.linalg.norm(e) < tol:
+            return q, e, it, True
+        J = pin.computeFrameJacobian(robot.reduced, robot.reduced_data, robot.to_reduced(q), fid,
+                                     pin.LOCAL_WORLD_ALIGNED)[rows][:, red_cols]
+        lam = np.linalg.norm(e) if damping is None else damping
+        dq = _limited_step(J, e, q[cols], lower, upper, lam)
+        dq *= min(1.0, max_step / max(np.max(np.abs(dq)), 1e-300))
+        # backtracking: accept the first step length that lowers the error
+        for alpha in 0.5 ** np.arange(12):
+            trial = q.copy()
+            trial[cols] = np.clip(q[cols] + alpha * dq, lower, upper)
+            e_trial, _ = _pose_error(robot, trial, fid, position, rotation)
+            if np.linalg.norm(e_trial) < np.linalg.norm(e):
+                break
+        else:
+            break  # stuck at a limit or a local minimum: try the next start
+        q, e = trial, e_trial
+    return q, e, it, False
 
 
 def _limited_step(J, e, q, lower, upper, damping) -> np.ndarray:
