@@ -1,7 +1,9 @@
 """Numeric inverse kinematics: damped least squares with the joint limits respected.
 
 Each step ``dq = J^T (J J^T + lambda^2 I)^-1 e`` is capped at ``max_step`` (rad or m per joint),
-projected back into the limits and shortened until the error decreases. A
+projected back into the limits and shortened until the error decreases. When no start reaches
+the tolerance (a fixed ``lambda`` stalls next to a singularity), the closest attempt goes on with
+``lambda`` equal to the error's norm, which vanishes with it (Sugihara 2011). A
 solution is returned only when the error is below tolerance; otherwise the best attempt is
 reported in the error, never returned as if it were a solution.
 """
