@@ -40,9 +40,16 @@ def test_main_leaves_the_collector_alone():
     assert gc.get_freeze_count() == frozen
 
 
-def test_python_m_writes_its_output_and_status(tmp_path):
-    """Freezing before the shutdown loses nothing: the JSON is whole on stdout, a user error is
-    one line with status 2."""
+def test_python_m_writes_its_files_output_and_status(tmp_path):
+    """Freezing before the shutdown loses nothing a command writes: its tables are whole on disk,
+    the JSON whole on stdout, a user error one line with status 2."""
+    out = tmp_path / "maps"
+    run = subprocess.run([sys.executable, "-m", "rcm_kin.cli", "torque-map", "psm", "--roll=-10:10:5",
+                          "--pitch=-10:10:3", "--no-figures", "--out", str(out)], capture_output=True, text=True,
+                         timeout=120)
+    assert run.returncode == 0, run.stderr
+    rows = (out / "torque_map.csv").read_text().splitlines()
+    assert len(rows) == 1 + 5 * 3 and all(row.count(",") == rows[0].count(",") for row in rows)
     ok = subprocess.run([sys.executable, "-m", "rcm_kin.cli", "fk", "psm", "0", "0", "0.1", "--json"],
                         capture_output=True, text=True, timeout=120)
     assert ok.returncode == 0 and ok.stdout.startswith("{") and ok.stdout.rstrip().endswith("}")

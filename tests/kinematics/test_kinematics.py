@@ -238,5 +238,3 @@ def test_an_unknown_frame_is_an_error_every_time(psm):
     for _ in range(2):
         with pytest.raises(RcmKinError, match="no frame 'nowhere'"):
             forward_kinematics(psm, np.zeros(7), ("tool_tip", "nowhere"))
-
-

@@ -3,6 +3,8 @@ and the reduced model (mimic joints) agree on passive joints, static torques and
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -159,8 +161,6 @@ def test_a_workspace_kept_loop_terms_follow_the_robot_it_serves(psm):
     """A workspace keeps its constraints' terms for the closure error (``RobotData.loop_terms``)
     only while the same robot's checks ask: one workspace used in turn by the PSM and by a copy
     whose loop rows are doubled gives each robot the error a fresh workspace gives it."""
-    import dataclasses
-
     doubled = dataclasses.replace(psm, constraints=[dataclasses.replace(c, rows=2.0 * c.rows) for c in psm.constraints])
     shared = psm.create_data()
     q_tree = np.random.default_rng(5).uniform(-1.0, 1.0, psm.tree.nq)

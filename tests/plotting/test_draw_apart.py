@@ -21,6 +21,7 @@ from rcm_kin import plotting as figures
 from rcm_kin.atomic import MANIFEST, PARTIAL
 from rcm_kin.cli import main
 from rcm_kin.errors import RcmKinError, RcmKinWarning
+from rcm_kin.model import load_robot
 from rcm_kin.parallel import machine_workers
 from rcm_kin.statics import maps
 
@@ -252,3 +253,13 @@ def test_the_trend_figure_failing_in_the_second_child_is_the_commands_one_line_e
     assert capsys.readouterr().err == "error: the process drawing the figures failed: ValueError: no trend\n"
     left = sorted(p.name for p in out.iterdir())
     assert "trend_curves.png" not in left and not any(PARTIAL in name for name in left)
+
+
+def test_the_gravity_maps_progress_bar_leaves_no_thread_that_would_stop_the_fork():
+    """tqdm starts a monitor thread with a bar; run_apart does not fork while another thread runs."""
+    robot = load_robot("psm")
+    poses = np.zeros((5000, 3))
+    poses[:, 2] = 0.1
+    maps.driven_gravity(robot, maps.map_drive(robot, None), poses, progress=True, block=1000)
+    assert tqdm.monitor is None or not tqdm.monitor.is_alive()
+    assert threading.active_count() == 1

@@ -27,7 +27,7 @@ class IKResult:
     q: np.ndarray               # actuated joints (rad, m)
     position_error: float       # m
     orientation_error: float    # rad (0 when only the position was asked for)
-    iterations: int
+    iterations: int             # of the search that reached it (a continued search's own: see solve_ik)
 
 
 def _pose_error(robot: Robot, q, fid, position, rotation) -> tuple[np.ndarray, pin.SE3]:
@@ -109,6 +109,8 @@ def _descend(robot: Robot, q: np.ndarray, steps: tuple,
         J = pin.computeFrameJacobian(robot.reduced, robot.reduced_data, robot.to_reduced(q), fid,
                                      pin.LOCAL_WORLD_ALIGNED)[rows][:, red_cols]
         lam = np.linalg.norm(e) if damping is None else damping
+        if not lam:
+            break  # no error left to scale the damping by (a tolerance of 0 is never reached)
         dq = _limited_step(J, e, q[cols], lower, upper, lam)
         dq *= min(1.0, max_step / max(np.max(np.abs(dq)), 1e-300))
         # backtracking: accept the first step length that lowers the error
@@ -119,7 +121,7 @@ def _descend(robot: Robot, q: np.ndarray, steps: tuple,
             if np.linalg.norm(e_trial) < np.linalg.norm(e):
                 break
         else:
-            break  # stuck at a limit or a local minimum: try the next start
+            break  # stuck at a limit or a local minimum
         q, e = trial, e_trial
     return q, e, it, False
 

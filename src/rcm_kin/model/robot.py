@@ -94,9 +94,9 @@ class Robot:
         if name in ("lower", "upper"):      # own read-only copies, whenever set: limit_bounds reads them once
             value = np.array(value, dtype=float)
             value.setflags(write=False)
-        if name in ("lower", "upper", "description"):   # what _pose_bounds reads
-            object.__setattr__(self, "_bounds", None)
         object.__setattr__(self, name, value)
+        if name in ("lower", "upper", "description"):   # what _pose_bounds reads: made again from the new value
+            object.__setattr__(self, "_bounds", None)
 
     def create_data(self) -> RobotData:
         """New scratch workspaces for the caller alone (Pinocchio's ``model.createData()``)."""
@@ -217,7 +217,7 @@ class Robot:
     def limit_bounds(self) -> tuple[list[float], list[float]]:
         """The joint limits widened by :data:`LIMIT_TOLERANCE` as Python floats, as
         :func:`check_within_limits` compares them: the one-pass check of :meth:`check_pose` (made
-        again when ``lower`` or ``upper`` is set)."""
+        again when ``lower``, ``upper`` or ``description`` is set)."""
         _, low, high = self._bounds or self._pose_bounds()
         return low, high
 

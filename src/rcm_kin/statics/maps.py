@@ -257,14 +257,20 @@ def driven_gravity(robot: Robot, drive: DriveParameters, Q: np.ndarray, progress
     offsets = tuple((link, tuple(float(x) for x in h)) for link, h in sorted(drive.gravity_offsets.items()))
     gravity = _compiled_gravity(robot, offsets)
     starts = range(0, len(Q), block)
-    if progress and len(starts) > 1:
-        # imported here: tqdm imports importlib.metadata, 20-30 ms of every start of a command
-        from tqdm import tqdm
-
-        starts = tqdm(starts, desc="gravity", unit="block")
     tau = np.empty((len(Q), 3))
-    for i in starts:
-        tau[i:i + block] = map_points(gravity, Q[i:i + block])[0]
+    if not (progress and len(starts) > 1):
+        for i in starts:
+            tau[i:i + block] = map_points(gravity, Q[i:i + block])[0]
+        return tau
+    # imported here: tqdm imports importlib.metadata, 20-30 ms of every start of a command
+    from tqdm import tqdm
+
+    with tqdm(starts, desc="gravity", unit="block") as bar:
+        for i in bar:
+            tau[i:i + block] = map_points(gravity, Q[i:i + block])[0]
+    monitor = tqdm.monitor        # the thread tqdm starts with a bar: left running, the figures would not fork
+    if monitor is not None and not monitor.get_instances():
+        monitor.exit()
     return tau
 
 
