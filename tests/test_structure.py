@@ -20,7 +20,7 @@ PACKAGE = SRC / "rcm_kin"
 LAYERS = [
     ("errors", "atomic"),
     ("hardware", "thesis", "firmware_rules"),
-    ("symbolic", "parallel", "apart"),
+    ("symbolic", "parallel", "apart", "progress"),
     ("csv_native", "csv_table"),
     ("model",),
     ("kinematics",),

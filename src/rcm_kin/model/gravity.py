@@ -25,6 +25,7 @@ from rcm_kin.model import constrained
 from rcm_kin.model.masses import require_masses
 from rcm_kin.model.reduced import relation_jacobian, tree_configuration
 from rcm_kin.model.robot import Robot, RobotData, check_robot
+from rcm_kin.progress import over_blocks
 from rcm_kin.symbolic.tree import joint_axis
 
 
@@ -169,12 +170,7 @@ def gravity_batch(robot: Robot, Q, offsets: dict | None = None, chunk: int = 819
         require_masses(robot, "gravity")
     Q = _poses(robot, Q)
     moments = offset_moments(robot, offsets or {})
-    starts = range(0, len(Q), chunk)
-    if progress and len(starts) > 1:
-        # imported here: tqdm imports importlib.metadata, 20-30 ms of every start of a command
-        from tqdm import tqdm
-
-        starts = tqdm(starts, desc="gravity", unit="chunk")
+    starts = over_blocks(range(0, len(Q), chunk), progress, "gravity", "chunk")
     return np.concatenate([_gravity_chunk(robot, Q[i:i + chunk], moments) for i in starts])
 
 

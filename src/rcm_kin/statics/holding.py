@@ -32,6 +32,7 @@ from rcm_kin.model.loading import build_robot
 from rcm_kin.model.masses import require_masses
 from rcm_kin.model.robot import check_robot
 from rcm_kin.plotting import torque_heatmaps
+from rcm_kin.progress import over_blocks
 from rcm_kin.statics.holding_band import band_columns, check_level
 from rcm_kin.statics.maps import HoldingEffort, check_map_size, drive_effort_blocks
 from rcm_kin.symbolic.compiled import map_points
@@ -258,13 +259,7 @@ def map_gravity(robot: Robot, offsets: dict, q: np.ndarray, index: tuple[int, in
     Q = np.empty((min(block, A * B), robot.nq))
     Q[:] = q                                        # the fixed joints, once; the grid's two columns per block
     dense = gravity.function.sparsity_out(0).is_dense()
-    starts = range(0, A * B, block)
-    if progress and len(starts) > 1:
-        # imported here: tqdm imports importlib.metadata, 20-30 ms of every start of a command
-        from tqdm import tqdm
-
-        starts = tqdm(starts, desc="gravity", unit="block")
-    for start in starts:
+    for start in over_blocks(range(0, A * B, block), progress, "gravity", "block"):
         stop = min(start + block, A * B)
         a, b = np.divmod(np.arange(start, stop), B)
         poses = Q[:stop - start]

@@ -35,6 +35,7 @@ from rcm_kin.model.gravity import gravity_batch
 from rcm_kin.model.masses import require_masses
 from rcm_kin.model.robot import check_robot
 from rcm_kin.plotting import draw_apart, effort_heatmaps, insertion_curves, thesis_trend_curves
+from rcm_kin.progress import over_blocks
 from rcm_kin.statics.holding_band import band_columns
 from rcm_kin.symbolic.compiled import compiled, map_points
 
@@ -256,21 +257,9 @@ def driven_gravity(robot: Robot, drive: DriveParameters, Q: np.ndarray, progress
     mapped over the poses; ``progress`` shows a bar over blocks of ``block`` poses."""
     offsets = tuple((link, tuple(float(x) for x in h)) for link, h in sorted(drive.gravity_offsets.items()))
     gravity = _compiled_gravity(robot, offsets)
-    starts = range(0, len(Q), block)
     tau = np.empty((len(Q), 3))
-    if not (progress and len(starts) > 1):
-        for i in starts:
-            tau[i:i + block] = map_points(gravity, Q[i:i + block])[0]
-        return tau
-    # imported here: tqdm imports importlib.metadata, 20-30 ms of every start of a command
-    from tqdm import tqdm
-
-    with tqdm(starts, desc="gravity", unit="block") as bar:
-        for i in bar:
-            tau[i:i + block] = map_points(gravity, Q[i:i + block])[0]
-    monitor = tqdm.monitor        # the thread tqdm starts with a bar: left running, the figures would not fork
-    if monitor is not None and not monitor.get_instances():
-        monitor.exit()
+    for i in over_blocks(range(0, len(Q), block), progress, "gravity", "block"):
+        tau[i:i + block] = map_points(gravity, Q[i:i + block])[0]
     return tau
 
 
